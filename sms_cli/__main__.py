@@ -1,0 +1,3 @@
+from sms_cli.cli import main
+
+main()

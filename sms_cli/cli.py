@@ -1,0 +1,153 @@
+"""The ``sms`` command line. Thin: parse, call a stage, print, exit with the documented code.
+
+Heavy modules (pinocchio, numpy, scipy, cvxpy, matplotlib) are imported inside commands so
+that ``sms --help`` and ``sms --version`` answer at once.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Callable, Optional
+
+import typer
+
+from sms_cli import __version__
+from sms_cli.errors import (
+    EXIT_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_NUMERICAL,
+    SmsError,
+)
+
+EXIT_CODES_HELP = (
+    "Exit codes: 0 ok · 1 requirements not met · 2 invalid input or usage · "
+    "3 numerical failure (infeasible synthesis, diverged simulation, singular model) · "
+    "4 internal error (a bug: please report it) · 130 interrupted."
+)
+EXIT_INTERNAL = 4
+
+app = typer.Typer(
+    name="sms",
+    help="Mission analysis for space manipulator systems: a URDF robot + a YAML mission → "
+    "ΔV budget, workspace maps, gains, simulation (MCAP), report and CI checks.\n\n" + EXIT_CODES_HELP,
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+_state = {"debug": False}
+
+MissionArg = Annotated[Path, typer.Argument(help="mission YAML file", show_default=False)]
+OutOpt = Annotated[
+    Optional[Path],
+    typer.Option("--out", "-o", help="results folder (default: results/<mission name>/ next to the current directory)"),
+]
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"sms {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="print the version")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="show tracebacks of errors")] = False,
+) -> None:
+    _state["debug"] = debug
+
+
+def err(text: str) -> None:
+    typer.echo(text, err=True)
+
+
+def run_guarded(fn: Callable[[], int | None]) -> None:
+    """Run a command body; map every failure to a message and an exit code (no traceback)."""
+    try:
+        code = fn() or 0
+    except SmsError as exc:
+        if _state["debug"]:
+            raise
+        err(f"error: {exc.render()}")
+        code = exc.exit_code
+    except KeyboardInterrupt:
+        err("interrupted")
+        code = EXIT_INTERRUPTED
+    except typer.Exit:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the contract is: never a raw traceback
+        if _state["debug"]:
+            raise
+        numeric = type(exc).__name__ in {"LinAlgError", "FloatingPointError"}
+        kind = "numerical failure" if numeric else "internal error (a bug in sms; please report it, run with --debug for the traceback)"
+        err(f"error: {kind}: {type(exc).__name__}: {exc}")
+        code = EXIT_NUMERICAL if numeric else EXIT_INTERNAL
+    raise typer.Exit(code)
+
+
+def default_out(mission_path: Path, out: Path | None) -> Path:
+    """Results folder of a mission: ``--out`` or ``results/<mission file stem>``."""
+    return out if out is not None else Path("results") / mission_path.stem
+
+
+@app.command("compile")
+def compile_cmd(
+    mission: MissionArg,
+    as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
+    out: OutOpt = None,
+    write: Annotated[bool, typer.Option("--write/--no-write", help="also write the summary into the results folder")] = False,
+) -> None:
+    """Validate a mission and its robot; print the model summary (DoF, mass, inertia, wheels, modes)."""
+
+    def body() -> int:
+        from sms_cli.model.summary import compile_summary, format_summary
+
+        summary = compile_summary(mission)
+        if write:
+            from sms_cli.results import ResultsDir
+
+            ResultsDir(default_out(mission, out)).update("compile", summary)
+        typer.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
+        return 0
+
+    run_guarded(body)
+
+
+@app.command("schema")
+def schema_cmd(
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="write to this file instead of stdout")] = None,
+) -> None:
+    """Print the JSON Schema of mission files (point your editor's YAML plugin at it)."""
+
+    def body() -> int:
+        from sms_cli.mission.load import mission_json_schema
+
+        text = json.dumps(mission_json_schema(), indent=2)
+        if output:
+            from sms_cli.results import write_text_atomic
+
+            write_text_atomic(output, text + "\n")
+        else:
+            typer.echo(text)
+        return 0
+
+    run_guarded(body)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except KeyboardInterrupt:  # pragma: no cover - outside a command body
+        err("interrupted")
+        sys.exit(EXIT_INTERRUPTED)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
+
+__all__ = ["app", "main", "run_guarded", "default_out", "EXIT_INPUT"]

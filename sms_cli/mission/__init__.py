@@ -1,0 +1,1 @@
+"""Mission files: YAML with units → validated pydantic models (see ``load_mission``)."""

@@ -1,0 +1,126 @@
+"""Load a mission file: YAML → ``Mission`` with errors that name file, line, column and field.
+
+Paths inside the mission (``robot.urdf``) are resolved relative to the mission file.
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from sms_cli.errors import InputError, Problem
+from sms_cli.mission.schema import Mission
+from sms_cli.mission.yaml_source import SourceMap, load_yaml
+
+
+@dataclass
+class LoadedMission:
+    """A validated mission with where it came from."""
+
+    mission: Mission
+    path: Path
+    source: SourceMap
+    text: str
+
+    def resolve(self, relative: str) -> Path:
+        """A path from the mission file, relative to the mission file's folder."""
+        p = Path(relative)
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+
+def _unwrap(tp: Any) -> list[Any]:
+    """Model classes reachable from a field annotation (Optional, list, dict, Annotated)."""
+    origin = typing.get_origin(tp)
+    if origin is typing.Annotated:
+        return _unwrap(typing.get_args(tp)[0])
+    if origin in (typing.Union, types.UnionType, list, dict, tuple):
+        out: list[Any] = []
+        for a in typing.get_args(tp):
+            out.extend(_unwrap(a))
+        return out
+    if isinstance(tp, type) and issubclass(tp, BaseModel):
+        return [tp]
+    return []
+
+
+def _models_at(root: type[BaseModel], loc: tuple[Any, ...]) -> list[type[BaseModel]]:
+    """The model classes that could be validating the mapping at ``loc``."""
+    current: list[type[BaseModel]] = [root]
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        nxt: list[type[BaseModel]] = []
+        for m in current:
+            f = m.model_fields.get(part)
+            if f is not None:
+                nxt.extend(_unwrap(f.annotation))
+        if not nxt:
+            # discriminated unions and dict values show tags in loc: skip them
+            continue
+        current = nxt
+    return current
+
+
+def _suggest(bad: str, candidates: list[str]) -> str:
+    close = difflib.get_close_matches(str(bad), candidates, n=1, cutoff=0.5)
+    if close:
+        return f"did you mean '{close[0]}'?"
+    return "valid keys here: " + ", ".join(sorted(candidates))
+
+
+def validation_problems(exc: ValidationError, root: type[BaseModel], smap: SourceMap,
+                        prefix: tuple[Any, ...] = ()) -> list[Problem]:
+    """Turn pydantic errors into located problems with fixes."""
+    problems: list[Problem] = []
+    for err in exc.errors():
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        full = prefix + loc
+        dotted = ".".join(str(p) for p in full) or "(top level)"
+        kind = err["type"]
+        if kind == "extra_forbidden":
+            names: list[str] = []
+            for m in _models_at(root, loc[:-1]):
+                names.extend(f.alias or n for n, f in m.model_fields.items())
+            problems.append(Problem(f"unknown key '{loc[-1]}'", smap.locate(full, prefer_key=True),
+                                    dotted, _suggest(loc[-1], sorted(set(names)))))
+        elif kind == "missing":
+            problems.append(Problem("required key is missing", smap.locate(full[:-1]), dotted,
+                                    f"add '{loc[-1]}:' here"))
+        else:
+            msg = err["msg"]
+            if msg.startswith("Value error, "):
+                msg = msg[len("Value error, "):]
+            given = err.get("input")
+            if isinstance(given, (str, int, float)) and not isinstance(given, bool):
+                msg = f"{msg} (got {given!r})"
+            problems.append(Problem(msg, smap.locate(full), dotted))
+    return problems
+
+
+def load_mission(path: Path | str) -> LoadedMission:
+    """Read and validate a mission file. Raises ``InputError`` listing every problem found."""
+    path = Path(path).resolve() if Path(path).exists() else Path(path)
+    data, smap = load_yaml(path)
+    if not isinstance(data, dict):
+        raise InputError(problems=[Problem("a mission file is a mapping (key: value) at the top level",
+                                           smap.locate(()), hint="start from one of the files in missions/")])
+    try:
+        mission = Mission.model_validate(data)
+    except ValidationError as exc:
+        problems = validation_problems(exc, Mission, smap)
+        raise InputError(f"{path}: {len(problems)} problem(s) in the mission file", problems) from None
+    return LoadedMission(mission, path, smap, path.read_text(encoding="utf-8"))
+
+
+def mission_json_schema() -> dict[str, Any]:
+    """JSON Schema of mission files (for editors: yaml-language-server, VS Code)."""
+    schema = Mission.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "sms mission file"
+    return schema

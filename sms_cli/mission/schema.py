@@ -1,0 +1,28 @@
+"""The mission file: one YAML document, one ``Mission``. Each stage owns its section."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from sms_cli.mission.base import StrictModel
+from sms_cli.mission.system import (
+    AppendageSpec,
+    InitialState,
+    PayloadSpec,
+    RobotSpec,
+    SpringSpec,
+    WheelsSpec,
+)
+
+
+class Mission(StrictModel):
+    """A servicing mission: the robot, its spacecraft extras and the stages to run."""
+
+    name: str = Field(description="short mission name (used in reports)")
+    description: str = Field("", description="what this mission studies; cite the source")
+    robot: RobotSpec | None = Field(None, description="the URDF robot (optional for budget-only missions)")
+    wheels: WheelsSpec = Field(default_factory=WheelsSpec)
+    appendages: list[AppendageSpec] = Field(default_factory=list)
+    springs: list[SpringSpec] = Field(default_factory=list)
+    payloads: list[PayloadSpec] = Field(default_factory=list)
+    initial: InitialState = Field(default_factory=InitialState)

@@ -1,0 +1,210 @@
+"""Physical quantities in mission files: ``"2800 rpm"``, ``"57.6 deg"``, ``"35786 km"``.
+
+One source of truth for unit conversion. Inside sms every number is SI and every angle
+is in radians; a bare number in a mission file is already SI. Strings carry a value and a
+unit expression (``"0.2 N m"``, ``"4e-4 kg m^2"``, ``"3 deg/s"``, ``"50 N*m*s"``).
+
+Dimensions are vectors over (length, mass, time, angle). Angle is kept as its own
+dimension so that ``"0.16 Hz"`` can mean 2π·0.16 rad/s for an angular frequency, and
+``"2800 rpm"`` converts to rad/s. A quantity with no angle where an angle is expected
+(``"1/s"`` for a rate) is taken as radians.
+
+Use the ``Annotated`` types below as pydantic field types: ``Length``, ``Mass``, ...
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Annotated, Any
+
+from pydantic import BeforeValidator, WithJsonSchema
+
+# (length, mass, time, angle)
+Dim = tuple[int, int, int, int]
+
+_BASE_UNITS: dict[str, tuple[float, Dim]] = {
+    # length
+    "m": (1.0, (1, 0, 0, 0)),
+    "km": (1e3, (1, 0, 0, 0)),
+    "cm": (1e-2, (1, 0, 0, 0)),
+    "mm": (1e-3, (1, 0, 0, 0)),
+    # mass
+    "kg": (1.0, (0, 1, 0, 0)),
+    "g": (1e-3, (0, 1, 0, 0)),
+    "t": (1e3, (0, 1, 0, 0)),
+    # time
+    "s": (1.0, (0, 0, 1, 0)),
+    "ms": (1e-3, (0, 0, 1, 0)),
+    "min": (60.0, (0, 0, 1, 0)),
+    "h": (3600.0, (0, 0, 1, 0)),
+    "day": (86400.0, (0, 0, 1, 0)),
+    "days": (86400.0, (0, 0, 1, 0)),
+    "d": (86400.0, (0, 0, 1, 0)),
+    "yr": (365.25 * 86400.0, (0, 0, 1, 0)),
+    # angle
+    "rad": (1.0, (0, 0, 0, 1)),
+    "deg": (math.pi / 180.0, (0, 0, 0, 1)),
+    "°": (math.pi / 180.0, (0, 0, 0, 1)),
+    "arcmin": (math.pi / 180.0 / 60.0, (0, 0, 0, 1)),
+    "arcsec": (math.pi / 180.0 / 3600.0, (0, 0, 0, 1)),
+    "rev": (2.0 * math.pi, (0, 0, 0, 1)),
+    # derived
+    "rpm": (2.0 * math.pi / 60.0, (0, 0, -1, 1)),
+    "Hz": (2.0 * math.pi, (0, 0, -1, 1)),  # cycles per second; 1 cycle = 2π rad
+    "N": (1.0, (1, 1, -2, 0)),
+    "mN": (1e-3, (1, 1, -2, 0)),
+    "kN": (1e3, (1, 1, -2, 0)),
+    "mNm": (1e-3, (2, 1, -2, 0)),
+    "Nm": (1.0, (2, 1, -2, 0)),
+    "Nms": (1.0, (2, 1, -1, 0)),
+    "J": (1.0, (2, 1, -2, 0)),
+    "W": (1.0, (2, 1, -3, 0)),
+}
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_QUANTITY_RE = re.compile(rf"^\s*({_NUMBER})\s*(.*?)\s*$")
+_TOKEN_RE = re.compile(r"([A-Za-z°]+)(?:\^?([-+]?\d+))?")
+
+#: Named dimensions of the quantity types (used in messages and the JSON Schema).
+DIMENSIONS: dict[str, Dim] = {
+    "dimensionless": (0, 0, 0, 0),
+    "length": (1, 0, 0, 0),
+    "mass": (0, 1, 0, 0),
+    "time": (0, 0, 1, 0),
+    "angle": (0, 0, 0, 1),
+    "angular rate": (0, 0, -1, 1),
+    "angular acceleration": (0, 0, -2, 1),
+    "frequency": (0, 0, -1, 0),
+    "velocity": (1, 0, -1, 0),
+    "acceleration": (1, 0, -2, 0),
+    "force": (1, 1, -2, 0),
+    "torque": (2, 1, -2, 0),
+    "angular momentum": (2, 1, -1, 0),
+    "inertia": (2, 1, 0, 0),
+    "rotational stiffness": (2, 1, -2, -1),
+    "rotational damping": (2, 1, -1, -1),
+    "linear stiffness": (0, 1, -2, 0),
+    "linear damping": (0, 1, -1, 0),
+    "gravitational parameter": (3, 0, -2, 0),
+    "power": (2, 1, -3, 0),
+}
+
+_EXAMPLES = {
+    "length": '"35786 km"',
+    "mass": '"150 kg"',
+    "time": '"10 min"',
+    "angle": '"57.6 deg"',
+    "angular rate": '"2800 rpm" or "0.5 deg/s"',
+    "frequency": '"0.16 Hz"',
+    "velocity": '"7.8 km/s"',
+    "force": '"0.5 N"',
+    "torque": '"0.2 N m"',
+    "angular momentum": '"50 N m s"',
+    "inertia": '"4e-4 kg m^2"',
+    "rotational stiffness": '"120 N m/rad"',
+    "rotational damping": '"2 N m s/rad"',
+    "gravitational parameter": '"398600.4418 km^3/s^2"',
+}
+
+
+class UnitError(ValueError):
+    """A quantity string that cannot be read or has the wrong dimension."""
+
+
+def _parse_unit_expression(expr: str) -> tuple[float, Dim]:
+    """Return (SI factor, dimension) of a unit expression such as ``"N m s/rad"``."""
+    expr = expr.strip()
+    if not expr:
+        return 1.0, (0, 0, 0, 0)
+    factor = 1.0
+    dim = [0, 0, 0, 0]
+    parts = expr.split("/")
+    for i, part in enumerate(parts):
+        sign = 1 if i == 0 else -1
+        for raw in re.split(r"[\s*·.]+", part.strip()):
+            if not raw or raw == "1":
+                continue
+            m = _TOKEN_RE.fullmatch(raw)
+            if not m or m.group(1) not in _BASE_UNITS:
+                known = ", ".join(sorted(_BASE_UNITS))
+                raise UnitError(f"unknown unit '{raw}' (known units: {known})")
+            f, d = _BASE_UNITS[m.group(1)]
+            p = sign * int(m.group(2) or 1)
+            factor *= f**p
+            for k in range(4):
+                dim[k] += d[k] * p
+    return factor, (dim[0], dim[1], dim[2], dim[3])
+
+
+def _compatible(given: Dim, wanted: Dim) -> bool:
+    """Same dimension, allowing a missing angle (implicit radians) on the given side, or
+    an angle where none is wanted (read as cycles: "0.16 Hz" as a frequency is 0.16 1/s)."""
+    if given[:3] != wanted[:3]:
+        return False
+    return given[3] == wanted[3] or given[3] == 0 or wanted[3] == 0
+
+
+def to_si(value: Any, dimension: str) -> float:
+    """Convert a bare number (already SI) or a ``"<number> <unit>"`` string to SI.
+
+    Raises UnitError with the expected dimension and an example when the string cannot
+    be read or its unit has another dimension.
+    """
+    wanted = DIMENSIONS[dimension]
+    if isinstance(value, bool):
+        raise UnitError(f"expected a {dimension}, got a boolean")
+    if isinstance(value, (int, float)):
+        return float(value)
+    if not isinstance(value, str):
+        raise UnitError(f"expected a {dimension} (number or string with unit), got {type(value).__name__}")
+    m = _QUANTITY_RE.match(value)
+    if not m:
+        ex = _EXAMPLES.get(dimension, '"1.0"')
+        raise UnitError(f"cannot read '{value}' as a {dimension}: write a number and a unit, e.g. {ex}")
+    number = float(m.group(1))
+    factor, dim = _parse_unit_expression(m.group(2))
+    if not _compatible(dim, wanted):
+        ex = _EXAMPLES.get(dimension, "")
+        hint = f", e.g. {ex}" if ex else ""
+        raise UnitError(f"'{value}' is not a {dimension}{hint}")
+    if wanted[3] == 0 and dim[3] != 0:
+        factor /= (2.0 * math.pi) ** dim[3]  # angle where none is wanted: count cycles
+    return number * factor
+
+
+def _quantity(dimension: str) -> Any:
+    def validate(v: Any) -> float:
+        try:
+            return to_si(v, dimension)
+        except UnitError as exc:
+            raise ValueError(str(exc)) from None
+
+    schema = {
+        "anyOf": [
+            {"type": "number"},
+            {"type": "string", "pattern": rf"^\s*{_NUMBER}\s*.*$"},
+        ],
+        "description": f"{dimension} (bare number = SI; or a string with a unit, e.g. {_EXAMPLES.get(dimension, '1.0')})",
+    }
+    return Annotated[float, BeforeValidator(validate), WithJsonSchema(schema)]
+
+
+Length = _quantity("length")
+Mass = _quantity("mass")
+Time = _quantity("time")
+Angle = _quantity("angle")
+AngularRate = _quantity("angular rate")
+Frequency = _quantity("frequency")
+Velocity = _quantity("velocity")
+Acceleration = _quantity("acceleration")
+Force = _quantity("force")
+Torque = _quantity("torque")
+AngularMomentum = _quantity("angular momentum")
+Inertia = _quantity("inertia")
+RotationalStiffness = _quantity("rotational stiffness")
+RotationalDamping = _quantity("rotational damping")
+LinearStiffness = _quantity("linear stiffness")
+LinearDamping = _quantity("linear damping")
+GravitationalParameter = _quantity("gravitational parameter")
+Dimensionless = _quantity("dimensionless")
