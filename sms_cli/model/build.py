@@ -1,0 +1,116 @@
+"""Pinocchio model construction: URDF (linted) + free-flyer base + mission-declared wheels
+and payload inertias. Zero gravity.
+
+Pinocchio's URDF parser merges links attached by fixed joints into their parent body and
+keeps them as frames; every URDF link name is therefore a frame name of the model.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from sms_cli.errors import InputError, Location, Problem
+
+
+@contextlib.contextmanager
+def captured_c_stderr():
+    """Capture what C/C++ code writes to file descriptor 2 (Pinocchio/urdfdom diagnostics)."""
+    out: dict[str, str] = {"text": ""}
+    try:
+        fd = 2
+        saved = os.dup(fd)
+    except OSError:  # no real stderr (some embedded runners)
+        yield out
+        return
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), fd)
+        try:
+            yield out
+        finally:
+            os.dup2(saved, fd)
+            os.close(saved)
+            tmp.seek(0)
+            out["text"] = tmp.read().decode("utf-8", "replace").strip()
+
+
+def build_rigid_model(xml: str, urdf_path) -> pin.Model:
+    """Free-flyer Pinocchio model from cleaned URDF XML; Pinocchio's own errors are shown."""
+    with captured_c_stderr() as err:
+        try:
+            model = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
+            failure = None
+        except Exception as exc:  # noqa: BLE001 - pinocchio raises ValueError/RuntimeError/...
+            model, failure = None, exc
+    if failure is not None:
+        detail = err["text"] or str(failure)
+        raise InputError(problems=[Problem(f"Pinocchio could not build the model: {detail}", Location(urdf_path))])
+    model.gravity = pin.Motion.Zero()
+    return model
+
+
+@dataclass
+class AddedRotor:
+    """A wheel rotor to add as a revolute joint (frames: mount link frame)."""
+
+    name: str
+    mount_frame: str
+    position: np.ndarray  # in the mount link frame (m)
+    axis: np.ndarray  # unit, in the mount link frame
+    spin_inertia: float
+    transverse_inertia: float
+    mass: float
+
+
+def rotation_z_to(axis: np.ndarray) -> np.ndarray:
+    """A rotation matrix whose z column is ``axis`` (unit)."""
+    z = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.column_stack([x, y, z])
+
+
+def frame_id(model: pin.Model, name: str, what: str, where: Location | None = None) -> int:
+    """Frame id of a URDF link name; InputError with a suggestion if it does not exist."""
+    if model.existFrame(name):
+        return model.getFrameId(name)
+    import difflib
+
+    names = [f.name for f in model.frames]
+    close = difflib.get_close_matches(name, names, n=1)
+    raise InputError(problems=[Problem(f"{what}: no link or frame named '{name}' in the robot", where,
+                                       hint=f"did you mean '{close[0]}'?" if close else "use a URDF link name")])
+
+
+def add_rotor(model: pin.Model, rotor: AddedRotor, where: Location | None = None) -> int:
+    """Append a wheel as a revolute joint about its axis; return the joint id."""
+    fid = frame_id(model, rotor.mount_frame, f"wheel '{rotor.name}' mount", where)
+    frame = model.frames[fid]
+    placement = frame.placement * pin.SE3(rotation_z_to(rotor.axis), np.asarray(rotor.position, float))
+    jid = model.addJoint(frame.parentJoint, pin.JointModelRZ(), placement, rotor.name,
+                         np.array([1e10]), np.array([1e10]), np.array([-1e10]), np.array([1e10]))
+    it, isp = rotor.transverse_inertia, rotor.spin_inertia
+    inertia = pin.Inertia(rotor.mass, np.zeros(3), np.diag([it, it, isp]))
+    model.appendBodyToJoint(jid, inertia, pin.SE3.Identity())
+    joint_frame = model.addJointFrame(jid, fid)
+    model.addBodyFrame(rotor_link_name(rotor.name), jid, pin.SE3.Identity(), joint_frame)
+    return jid
+
+
+def rotor_link_name(wheel_name: str) -> str:
+    """Link (body frame) name of a compiler-added wheel rotor; the joint carries the wheel name."""
+    return f"{wheel_name}_rotor"
+
+
+def payload_inertia(mass: float, com: np.ndarray, inertia6: list[float]) -> pin.Inertia:
+    """Pinocchio spatial inertia of a payload: inertia6 about its CoM, in the attach frame's axes."""
+    ixx, iyy, izz, ixy, ixz, iyz = inertia6
+    rot = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    return pin.Inertia(mass, np.asarray(com, float), rot)
