@@ -1,0 +1,5 @@
+#!/usr/bin/env bash
+# Set up (first run) and run the flagship mission end to end into results/pulsar_simple/.
+source "$(dirname "$0")/_env.sh"
+MISSION="${1:-missions/pulsar_simple.yaml}"
+sms compile "$MISSION" --write --out "results/$(basename "$MISSION" .yaml)"

@@ -1,0 +1,119 @@
+"""``sms compile``: the human (and JSON) summary of a compiled mission."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from sms_cli.mission.load import load_mission
+from sms_cli.model.compiler import compile_system
+from sms_cli.model.modal import coupled_frequencies
+from sms_cli.model.system import SystemModel
+
+
+def wheel_momentum_capacity(sm: SystemModel) -> dict[str, Any]:
+    """Per-wheel momentum I_s·ω_max (N m s) and the array's capacity along each base axis:
+    max over admissible wheel speeds of |Σ h_i a_i · e| = Σ I_s,i ω_max,i |a_i · e|."""
+    per = {w.name: w.spin_inertia * w.max_speed for w in sm.wheels}
+    axes = {}
+    for k, label in enumerate("xyz"):
+        axes[label] = float(sum(w.spin_inertia * w.max_speed * abs(w.axis[k]) for w in sm.wheels))
+    return {"per_wheel_Nms": per, "along_base_axes_Nms": axes}
+
+
+def model_summary(sm: SystemModel) -> dict[str, Any]:
+    """Figures of the compiled model at its initial configuration (SI units, world frame)."""
+    q = sm.q0
+    pin.ccrba(sm.model, sm.data, q, np.zeros(sm.nv))
+    inertia_com = sm.data.Ig.inertia.copy()
+    coupled = coupled_frequencies(sm, q)
+    return {
+        "name": sm.name,
+        "dof": {"base": 6, "wheels": len(sm.wheels), "arm": len(sm.arm), "passive": len(sm.springs),
+                "modes": sm.n_modes, "total": sm.nx},
+        "nq": sm.nq, "nv": sm.nv,
+        "total_mass_kg": sm.total_mass,
+        "com_world_m": sm.com(q),
+        "inertia_about_com_world_kgm2": inertia_com,
+        "end_effector": sm.model.frames[sm.ee_frame_id].name,
+        "end_effector_position_world_m": sm.ee_pose(q).translation,
+        "arm_joints": [{"name": a.name, "kind": a.kind, "lower": a.lower, "upper": a.upper,
+                        "max_velocity": a.max_velocity, "max_effort": a.max_effort} for a in sm.arm],
+        "wheels": [{"name": w.name, "axis_base": w.axis, "spin_inertia_kgm2": w.spin_inertia,
+                    "max_torque_Nm": w.max_torque, "max_speed_rad_s": w.max_speed,
+                    "initial_speed_rad_s": w.initial_speed} for w in sm.wheels],
+        "wheel_momentum_capacity": wheel_momentum_capacity(sm),
+        "appendages": [{"name": a.name, "frame": sm.model.frames[a.frame_id].name,
+                        "clamped_frequencies_hz": a.omega / (2 * math.pi), "damping": a.zeta} for a in sm.appendages],
+        "springs": [{"joint": s.joint, "stiffness": s.stiffness, "damping": s.damping} for s in sm.springs],
+        "coupled_frequencies_hz": coupled / (2 * math.pi),
+        "payloads": [{"name": p.name, "frame": sm.model.frames[p.frame_id].name, "mass_kg": p.inertia_in_joint.mass,
+                      "attached": p.attached} for p in sm.payloads.values()],
+        "warnings": [w.render() for w in sm.warnings],
+    }
+
+
+def compile_summary(mission_path: Path) -> dict[str, Any]:
+    """Load, compile and summarise a mission (plain JSON-ready data)."""
+    from sms_cli.results import _jsonable
+
+    loaded = load_mission(mission_path)
+    sm = compile_system(loaded)
+    out = model_summary(sm)
+    out["mission_file"] = str(mission_path)
+    return _jsonable(out)
+
+
+def _fmt_limit(x: float | None, unit: str = "") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "—"
+    return f"{x:.4g}{unit}"
+
+
+def format_summary(s: dict[str, Any]) -> str:
+    """Human-readable multi-line summary."""
+    d = s["dof"]
+    lines = [
+        f"mission   {s['name']}  ({s['mission_file']})",
+        f"DoF       base {d['base']} · wheels {d['wheels']} · arm {d['arm']} · passive {d['passive']} · modes {d['modes']}"
+        f"  (total {d['total']}; nq={s['nq']}, nv={s['nv']})",
+        f"mass      {s['total_mass_kg']:.4f} kg",
+        "CoM       [" + ", ".join(f"{c:.4f}" for c in s["com_world_m"]) + "] m (world)",
+        "inertia   about CoM, world axes (kg m^2):",
+    ]
+    for row in s["inertia_about_com_world_kgm2"]:
+        lines.append("            [" + ", ".join(f"{x:12.4f}" for x in row) + "]")
+    lines.append(f"end eff.  {s['end_effector']} at [" + ", ".join(f"{c:.4f}" for c in s["end_effector_position_world_m"]) + "] m")
+    if s["arm_joints"]:
+        lines.append("arm       name                 kind        lower      upper    v max    effort")
+        for a in s["arm_joints"]:
+            lines.append(f"          {a['name']:<20} {a['kind']:<10} {_fmt_limit(a['lower']):>9} {_fmt_limit(a['upper']):>9}"
+                         f" {_fmt_limit(a['max_velocity']):>8} {_fmt_limit(a['max_effort']):>9}")
+    if s["wheels"]:
+        cap = s["wheel_momentum_capacity"]
+        lines.append("wheels    name        axis (base frame)            I_spin     τ max     ω max (rpm)  h max (N m s)")
+        for w in s["wheels"]:
+            ax = "[" + ", ".join(f"{c:+.3f}" for c in w["axis_base"]) + "]"
+            lines.append(f"          {w['name']:<10} {ax:<28} {w['spin_inertia_kgm2']:<10.4g} {w['max_torque_Nm']:<9.4g}"
+                         f" {w['max_speed_rad_s'] * 60 / (2 * math.pi):<12.5g} {cap['per_wheel_Nms'][w['name']]:.4g}")
+        ax = cap["along_base_axes_Nms"]
+        lines.append(f"          momentum capacity along base x/y/z: {ax['x']:.4g} / {ax['y']:.4g} / {ax['z']:.4g} N m s")
+    for a in s["appendages"]:
+        f = ", ".join(f"{x:.4g}" for x in a["clamped_frequencies_hz"])
+        lines.append(f"modes     {a['name']} at {a['frame']}: clamped {f} Hz (ζ " + ", ".join(f"{z:.3g}" for z in a["damping"]) + ")")
+    for sp in s["springs"]:
+        lines.append(f"spring    {sp['joint']}: k = {sp['stiffness']:.4g}, c = {sp['damping']:.4g}")
+    if s["coupled_frequencies_hz"]:
+        lines.append("coupled   free-free elastic frequencies: " + ", ".join(f"{x:.4g}" for x in s["coupled_frequencies_hz"]) + " Hz")
+    for p in s["payloads"]:
+        lines.append(f"payload   {p['name']}: {p['mass_kg']:.4g} kg at {p['frame']} ({'attached' if p['attached'] else 'detached'} at t=0)")
+    if s["warnings"]:
+        lines.append(f"warnings  {len(s['warnings'])}:")
+        lines.extend("  - " + w.replace("\n", "\n    ") for w in s["warnings"])
+    else:
+        lines.append("warnings  none")
+    return "\n".join(lines)

@@ -1,0 +1,31 @@
+"""Shared test helpers: paths, CLI runner, mission compilation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+MISSIONS = ROOT / "missions"
+
+
+@pytest.fixture(scope="session")
+def runner() -> CliRunner:
+    return CliRunner()
+
+
+def run_cli(*args: str):
+    """Invoke ``sms`` in-process; returns click's Result (exit_code, stdout, stderr)."""
+    from sms_cli.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def compile_path(path: Path | str):
+    from sms_cli.mission.load import load_mission
+    from sms_cli.model import compile_system
+
+    return compile_system(load_mission(path))
