@@ -159,6 +159,7 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
     pin_data = model.createData()
     q_ref = pin.neutral(model)
     pin.framesForwardKinematics(model, pin_data, q_ref)
+    pin.computeJointJacobians(model, pin_data, q_ref)
     base_R = pin_data.oMi[1].rotation
 
     wheels = []
@@ -166,7 +167,7 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
         j = jid(n)
         R_joint_in_base = base_R.T @ pin_data.oMi[j].rotation
         jm = model.joints[j]
-        local_axis = _joint_axis(jm)
+        local_axis = _joint_axis(model, pin_data, j)
         Y = model.inertias[j]
         spin = float(local_axis @ Y.inertia @ local_axis)
         spec = wheel_limits[n]
@@ -271,15 +272,12 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
     return sm
 
 
-def _joint_axis(jm) -> np.ndarray:
-    """Unit axis of a 1-DoF revolute joint model, in its joint frame."""
-    short = jm.shortname()
-    for key, axis in (("RX", [1, 0, 0]), ("RY", [0, 1, 0]), ("RZ", [0, 0, 1])):
-        if key in short:
-            return np.array(axis, dtype=float)
-    if hasattr(jm, "axis"):
-        return np.asarray(jm.axis, float)
-    raise InputError(f"wheel joint type {short} is not a revolute joint")
+def _joint_axis(model: pin.Model, data: pin.Data, jid: int) -> np.ndarray:
+    """Unit rotation axis of a 1-DoF revolute joint in its own joint frame (from its motion subspace)."""
+    col = pin.getJointJacobian(model, data, jid, pin.ReferenceFrame.LOCAL)[:, model.joints[jid].idx_v]
+    if np.linalg.norm(col[3:6]) < 1e-12 or np.linalg.norm(col[0:3]) > 1e-12:
+        raise InputError(f"wheel joint '{model.names[jid]}' is not a revolute joint")
+    return col[3:6] / np.linalg.norm(col[3:6])
 
 
 def _check_physical(sm: SystemModel, loaded: LoadedMission, warnings: Warnings) -> None:

@@ -32,6 +32,14 @@ LOCAL = pin.ReferenceFrame.LOCAL
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
+def _symmetric(upper: np.ndarray) -> np.ndarray:
+    """Full symmetric matrix from Pinocchio's CRBA output (upper triangle filled)."""
+    full = np.triu(upper)
+    full += full.T
+    full.flat[:: full.shape[0] + 1] *= 0.5
+    return full
+
+
 @dataclass
 class Wheel:
     """A reaction wheel joint. ``axis`` is its unit spin axis in the base frame at q0."""
@@ -148,6 +156,20 @@ class SystemModel:
         self._spring_k = np.array([s.stiffness for s in self.springs])
         self._spring_c = np.array([s.damping for s in self.springs])
         self._spring_rest = np.array([s.rest for s in self.springs])
+        self._prepare_base_modes()
+
+    def _prepare_base_modes(self) -> None:
+        """Fast path when every appendage is mounted on the base body (the usual case):
+        the junction Jacobian is the constant adjoint X (6×6) on the base columns, so
+        B = L X (n_η×6) is constant, the drift L J̇ v vanishes and Jᵀ(V ×* p) = v_b ×* (Bᵀη̇)."""
+        self._base_B = None
+        if self.appendages and all(self.model.frames[a.frame_id].parentJoint == self.base_joint_id for a in self.appendages):
+            B = np.zeros((self.n_modes, 6))
+            for a in self.appendages:
+                X = self.model.frames[a.frame_id].placement.inverse().action  # base twist -> junction twist
+                B[a.modes] = a.L @ X
+            self._base_B = B
+            self._base_BtB = B.T @ B
 
     # ------------------------------------------------------------------ inertia
     @property
@@ -205,8 +227,7 @@ class SystemModel:
     # ------------------------------------------------------------------ dynamics
     def rigid_mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Symmetric joint-space inertia H(q) of the rigid system (nv×nv)."""
-        M = pin.crba(self.model, self.data, q)
-        return np.triu(M) + np.triu(M, 1).T
+        return _symmetric(pin.crba(self.model, self.data, q))
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Augmented mass matrix [[H, JᵀLᵀ], [L J, I]] (nx×nx)."""
@@ -251,10 +272,31 @@ class SystemModel:
             if self.springs:
                 tau_total = tau_total + self.internal_forces(q, v, eta, etadot)[: self.nv]
             return pin.aba(self.model, self.data, q, v, tau_total).copy(), np.zeros(0)
+        if self._base_B is not None:
+            return self._forward_dynamics_base_modes(q, v, eta, etadot, tau)
         rhs = self.internal_forces(q, v, eta, etadot) - self.bias_forces(q, v, etadot)
         rhs[: self.nv] += tau
         acc = np.linalg.solve(self.mass_matrix(q), rhs)
         return acc[: self.nv], acc[self.nv:]
+
+    def _forward_dynamics_base_modes(self, q, v, eta, etadot, tau):
+        """Schur complement on the modal block: (H − BᵀB) v̇ = τ − h − g − Bᵀ r_η, η̈ = r_η − B v̇."""
+        B = self._base_B
+        H = _symmetric(pin.crba(self.model, self.data, q))
+        H[:6, :6] -= self._base_BtB
+        rhs = tau - pin.nonLinearEffects(self.model, self.data, q, v)
+        if self.springs:
+            rhs[self._spring_v] -= self._spring_k * (q[self._spring_q] - self._spring_rest) + self._spring_c * v[self._spring_v]
+        fx, fy, fz, nx, ny, nz = B.T @ etadot  # modal momentum as a base-frame wrench [f; n]
+        vx, vy, vz, wx, wy, wz = v[:6]
+        rhs[:6] -= (wy * fz - wz * fy, wz * fx - wx * fz, wx * fy - wy * fx,  # v_b ×* P = [ω×f; v×f + ω×n]
+                    vy * fz - vz * fy + wy * nz - wz * ny,
+                    vz * fx - vx * fz + wz * nx - wx * nz,
+                    vx * fy - vy * fx + wx * ny - wy * nx)
+        r_eta = -(self._omega**2) * eta - 2.0 * self._zeta * self._omega * etadot
+        rhs[:6] -= B.T @ r_eta
+        vdot = np.linalg.solve(H, rhs)
+        return vdot, r_eta - B @ vdot[:6]
 
     # ------------------------------------------------------------------ momentum and energy
     def momentum(self, q: np.ndarray, v: np.ndarray, etadot: np.ndarray | None = None,
