@@ -11,7 +11,7 @@ import pinocchio as pin
 
 from sms_cli.errors import InputError, Location, Problem, Warnings
 from sms_cli.mission.load import LoadedMission
-from sms_cli.model.build import AddedRotor, add_rotor, build_rigid_model, frame_id, payload_inertia, rotation_z_to
+from sms_cli.model.build import AddedRotor, add_rotor, build_rigid_model, frame_id, payload_inertia, rotor_link_name
 from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_matrix
 from sms_cli.model.system import Appendage, ArmJoint, Partitions, Payload, Spring, SystemModel, Wheel
 from sms_cli.model.urdf_lint import MOVABLE, UrdfInfo, lint_urdf
@@ -264,10 +264,13 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
     sm = SystemModel(model=model, name=mission.name, urdf_text=info.xml, idx=idx, wheels=wheels, arm=arm, springs=springs,
                      appendages=appendages, payloads=payloads, ee_frame_id=ee_fid, base_frame_id=base_fid,
                      q0=q0, v0=v0, eta0=eta0, etadot0=np.zeros(start), warnings=list(warnings))
+    sm.link_parents = {info.root: "world"}
+    sm.link_parents.update({j.child: j.parent for j in info.joints.values()})
+    sm.link_parents.update({rotor_link_name(r.name): r.mount_frame for r, _, _ in rotors})
     for p in mission.payloads:
         if p.attached:
             sm.attach_payload(p.name)
-    _check_physical(sm, loaded, warnings)
+    _check_physical(sm, loaded, info, warnings)
     sm.warnings = list(warnings)
     return sm
 
@@ -280,8 +283,9 @@ def _joint_axis(model: pin.Model, data: pin.Data, jid: int) -> np.ndarray:
     return col[3:6] / np.linalg.norm(col[3:6])
 
 
-def _check_physical(sm: SystemModel, loaded: LoadedMission, warnings: Warnings) -> None:
-    """The augmented mass matrix must be positive definite; per appendage, M_jj − LᵀL ⪰ 0 is expected."""
+def _check_physical(sm: SystemModel, loaded: LoadedMission, info: UrdfInfo, warnings: Warnings) -> None:
+    """The augmented mass matrix must be positive definite; per appendage, M_jj − LᵀL ⪰ 0 is expected
+    (the modes cannot carry more inertia than the appendage's rigid body at the junction)."""
     M = sm.mass_matrix(sm.q0)
     eig = np.linalg.eigvalsh(M)
     if eig.min() <= 1e-12 * max(eig.max(), 1.0):
@@ -289,9 +293,12 @@ def _check_physical(sm: SystemModel, loaded: LoadedMission, warnings: Warnings) 
             f"the mass matrix with modes is not positive definite (smallest eigenvalue {eig.min():.3g}): "
             "participation factors exceed what the rigid inertia allows, or a body is massless",
             _where(loaded, "appendages"), hint="check the participation factors (units, ordering) and the appendage link inertia")])
-    for i, a in enumerate(sm.appendages):
-        fr = sm.model.frames[a.frame_id]
-        M_jj = _link_inertia_at_frame(sm, fr)
+    for i, (spec, a) in enumerate(zip(loaded.mission.appendages, sm.appendages)):
+        M_jj = _link_inertia_at_frame(sm, info, spec.link, a.frame_id)
+        if M_jj is None:
+            warnings.add(f"appendage '{a.name}': link '{spec.link}' has no <inertial>; its modes cannot be checked",
+                         _where(loaded, "appendages", i, "link"))
+            continue
         residual = np.linalg.eigvalsh(M_jj - a.L.T @ a.L)
         if residual.min() < -1e-9 * np.abs(M_jj).max():
             warnings.add(f"appendage '{a.name}': modal effective mass exceeds the rigid inertia of its link at the junction "
@@ -300,11 +307,15 @@ def _check_physical(sm: SystemModel, loaded: LoadedMission, warnings: Warnings) 
                          "check the link inertia, the ordering (TR/RT) and the frame of L")
 
 
-def _link_inertia_at_frame(sm: SystemModel, frame) -> np.ndarray:
-    """6×6 spatial inertia ([v; ω] order) of the URDF link of a frame, expressed at that frame.
-
-    Pinocchio keeps the inertia of a link merged through a fixed joint on its frame; a link
-    that is itself a joint's body uses the body inertia (placement of the frame applied)."""
-    if frame.inertia.mass > 0:
-        return frame.inertia.matrix()
-    return frame.placement.actInv(sm.model.inertias[frame.parentJoint]).matrix()
+def _link_inertia_at_frame(sm: SystemModel, info: UrdfInfo, link: str, frame_id: int) -> np.ndarray | None:
+    """6×6 spatial inertia ([v; ω] order) of a URDF link's own <inertial>, expressed at a frame."""
+    if link not in info.inertials:
+        return None
+    mass, xyz, rpy, (ixx, iyy, izz, ixy, ixz, iyz) = info.inertials[link]
+    R = euler_zyx_to_matrix(*rpy)
+    I_c = R @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ R.T
+    Y_link = pin.Inertia(mass, np.asarray(xyz, float), I_c)  # in the link frame
+    d = sm.model.createData()
+    pin.framesForwardKinematics(sm.model, d, sm.q0)
+    link_to_frame = d.oMf[frame_id].actInv(d.oMf[sm.model.getFrameId(link)])
+    return link_to_frame.act(Y_link).matrix()

@@ -142,6 +142,7 @@ class SystemModel:
     etadot0: np.ndarray
     warnings: list = field(default_factory=list)
     base_joint_id: int = 1
+    link_parents: dict[str, str] = field(default_factory=dict)  # URDF link (and wheel rotor) -> parent link; base -> "world"
 
     def __post_init__(self) -> None:
         self.data = self.model.createData()

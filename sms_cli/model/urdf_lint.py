@@ -53,6 +53,8 @@ class UrdfInfo:
     masses: dict[str, float]  # links with an <inertial>
     joints: dict[str, UrdfJoint]
     xml: str  # cleaned XML given to Pinocchio
+    inertials: dict[str, tuple[float, np.ndarray, np.ndarray, list[float]]] = field(default_factory=dict)
+    # link -> (mass, origin xyz, origin rpy, [ixx iyy izz ixy ixz iyz]) as written in <inertial>
     children: dict[str, list[str]] = field(default_factory=dict)  # link -> child joints (tree order)
 
     def movable_joints_in_tree_order(self) -> list[str]:
@@ -122,6 +124,7 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
 
     links: dict[str, int] = {}
     masses: dict[str, float] = {}
+    inertials: dict[str, tuple] = {}
     for link in root.findall("link"):
         name = link.get("name")
         if not name:
@@ -147,6 +150,9 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
                                     hint="add <inertia ixx= iyy= izz= ixy= ixz= iyz=/> about the CoM"))
             continue
         vals = [_f(ine.get(k)) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
+        org = inertial.find("origin")
+        inertials[name] = (mass, _vec(org.get("xyz") if org is not None else None, (0.0, 0.0, 0.0)),
+                           _vec(org.get("rpy") if org is not None else None, (0.0, 0.0, 0.0)), vals)
         why = check_inertia(*vals)
         if why:
             problems.append(Problem(f"link '{name}': {why}", loc(ine),
@@ -238,4 +244,4 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
         raise InputError(f"{path}: {len(problems)} problem(s) in the URDF", problems)
 
     xml = etree.tostring(root, encoding="unicode")
-    return UrdfInfo(path, root.get("name", path.stem), roots[0], links, masses, joints, xml, children)
+    return UrdfInfo(path, root.get("name", path.stem), roots[0], links, masses, joints, xml, inertials=inertials, children=children)
