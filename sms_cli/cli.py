@@ -117,6 +117,30 @@ def compile_cmd(
     run_guarded(body)
 
 
+@app.command("budget")
+def budget_cmd(
+    mission: MissionArg,
+    out: OutOpt = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print the budget as JSON")] = False,
+) -> None:
+    """ΔV, propellant and burn-time budget of the mission's manoeuvre sequence (writes results.json, CSV, plots)."""
+
+    def body() -> int:
+        from sms_cli.mission.load import load_mission
+        from sms_cli.orbit.stage import format_budget, run_budget
+
+        data = run_budget(load_mission(mission), default_out(mission, out))
+        if as_json:
+            from sms_cli.results import _jsonable
+
+            typer.echo(json.dumps(_jsonable(data), indent=2))
+        else:
+            typer.echo(format_budget(data))
+        return 0
+
+    run_guarded(body)
+
+
 @app.command("schema")
 def schema_cmd(
     output: Annotated[Optional[Path], typer.Option("--output", "-o", help="write to this file instead of stdout")] = None,

@@ -13,6 +13,7 @@ from sms_cli.mission.system import (
     SpringSpec,
     WheelsSpec,
 )
+from sms_cli.orbit.schema import BudgetSpec
 
 
 class Mission(StrictModel):
@@ -26,3 +27,6 @@ class Mission(StrictModel):
     springs: list[SpringSpec] = Field(default_factory=list)
     payloads: list[PayloadSpec] = Field(default_factory=list)
     initial: InitialState = Field(default_factory=InitialState)
+    budget: BudgetSpec | None = Field(
+        None, description="orbital ΔV, propellant and burn-time budget (sms budget): orbit, propulsion, "
+                          "spacecraft masses and a manoeuvre sequence (or several scenarios)")
