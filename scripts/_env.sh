@@ -13,8 +13,13 @@ if [ ! -x .venv/bin/python ]; then
 fi
 STAMP=.venv/.sms-installed
 if [ ! -f "$STAMP" ] || [ pyproject.toml -nt "$STAMP" ] || [ constraints.txt -nt "$STAMP" ]; then
-  .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -c constraints.txt -e ".[test]"
+  echo "installing sms and its pinned dependencies into .venv (log: .venv/install.log)" >&2
+  if ! { .venv/bin/python -m pip install --upgrade pip && \
+         .venv/bin/python -m pip install -c constraints.txt -e ".[test]"; } > .venv/install.log 2>&1; then
+    tail -n 30 .venv/install.log >&2
+    echo "installation failed (full log: .venv/install.log)" >&2
+    exit 2
+  fi
   touch "$STAMP"
 fi
 export PATH="$PWD/.venv/bin:$PATH"

@@ -2,4 +2,7 @@
 # Set up (first run) and run the flagship mission end to end into results/pulsar_simple/.
 source "$(dirname "$0")/_env.sh"
 MISSION="${1:-missions/pulsar_simple.yaml}"
-sms compile "$MISSION" --write --out "results/$(basename "$MISSION" .yaml)"
+OUT="results/$(basename "$MISSION" .yaml)"
+sms compile "$MISSION" --write --out "$OUT"
+sms budget "$MISSION" --out "$OUT"
+echo "results: $OUT/"
