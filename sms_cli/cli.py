@@ -141,6 +141,32 @@ def budget_cmd(
     run_guarded(body)
 
 
+@app.command("analyze")
+def analyze_cmd(
+    mission: MissionArg,
+    out: OutOpt = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print the analysis section as JSON")] = False,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the PNG plots (default: as the mission says)")] = True,
+    progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar on stderr (default: when a terminal)")] = None,
+) -> None:
+    """Workspace maps, kinematic indices (manipulability, K^m/K^r, null-motion, momentum), variants and modal analysis."""
+
+    def body() -> int:
+        from sms_cli.analysis.stage import format_analysis, run_analysis
+        from sms_cli.mission.load import load_mission
+
+        data = run_analysis(load_mission(mission), default_out(mission, out), plots=None if plots else False, progress=progress)
+        if as_json:
+            from sms_cli.results import _jsonable
+
+            typer.echo(json.dumps(_jsonable(data), indent=2))
+        else:
+            typer.echo(format_analysis(data))
+        return 0
+
+    run_guarded(body)
+
+
 @app.command("schema")
 def schema_cmd(
     output: Annotated[Optional[Path], typer.Option("--output", "-o", help="write to this file instead of stdout")] = None,

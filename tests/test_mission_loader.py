@@ -86,3 +86,28 @@ def test_bad_key_through_cli_exit_2(tmp_path):
     assert r.exit_code == 2
     assert "did you mean 'end_effector'" in r.stderr
     assert "Traceback" not in r.stderr + r.stdout
+
+
+def test_extends_merges_and_locates_errors_in_the_right_file(tmp_path):
+    sub = tmp_path / "variants"
+    sub.mkdir()
+    (tmp_path / "arm3.urdf").write_text((DATA / "arm3.urdf").read_text())
+    (tmp_path / "base.yaml").write_text(GOOD)
+    (sub / "child.yaml").write_text("extends: ../base.yaml\nname: child\ninitial:\n  joints: {j1: 0.9}\n")
+    m = load_mission(sub / "child.yaml")
+    assert m.mission.name == "child"
+    assert m.mission.initial.joints["j1"] == 0.9  # mappings merge key by key
+    assert "j2" in m.mission.initial.joints
+    assert m.resolve(m.mission.robot.urdf, ("robot", "urdf")) == (tmp_path / "arm3.urdf").resolve()  # parent's folder
+    (tmp_path / "base.yaml").write_text(GOOD.replace("max_torque: 0.2 N m", "max_torqe: 0.2 N m"))
+    with pytest.raises(InputError) as e:
+        load_mission(sub / "child.yaml")
+    assert "base.yaml:" in e.value.render() and "did you mean 'max_torque'" in e.value.render()
+
+
+def test_extends_cycle_is_an_error(tmp_path):
+    (tmp_path / "a.yaml").write_text("extends: b.yaml\nname: a\n")
+    (tmp_path / "b.yaml").write_text("extends: a.yaml\nname: b\n")
+    with pytest.raises(InputError) as e:
+        load_mission(tmp_path / "a.yaml")
+    assert "cycle" in e.value.render()

@@ -35,12 +35,27 @@ Accel = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndar
 
 
 def _dexpinv_neg(theta: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """dexp⁻¹_{−θ}(v) truncated after the second bracket, on the free-flyer block (first 6)."""
+    """dexp⁻¹_{−θ}(v) truncated after the second bracket, on the free-flyer block (first 6).
+
+    The se(3) bracket of [ρ; φ] and [u; w] (linear first, Pinocchio order) is
+    [φ×u + ρ×w ; φ×w]; written out in floats (this runs 3× per plant step)."""
+    r0, r1, r2, p0, p1, p2 = theta[:6]
+    u0, u1, u2, w0, w1, w2 = v[:6]
+    # c1 = [θ, v]
+    a0 = p1 * u2 - p2 * u1 + r1 * w2 - r2 * w1
+    a1 = p2 * u0 - p0 * u2 + r2 * w0 - r0 * w2
+    a2 = p0 * u1 - p1 * u0 + r0 * w1 - r1 * w0
+    b0 = p1 * w2 - p2 * w1
+    b1 = p2 * w0 - p0 * w2
+    b2 = p0 * w1 - p1 * w0
+    # c2 = [θ, c1]
     out = v.copy()
-    t = pin.Motion(theta[:6])
-    c1 = t.cross(pin.Motion(v[:6]))
-    c2 = t.cross(c1)
-    out[:6] = v[:6] + 0.5 * c1.vector + c2.vector / 12.0
+    out[0] = u0 + 0.5 * a0 + (p1 * a2 - p2 * a1 + r1 * b2 - r2 * b1) / 12.0
+    out[1] = u1 + 0.5 * a1 + (p2 * a0 - p0 * a2 + r2 * b0 - r0 * b2) / 12.0
+    out[2] = u2 + 0.5 * a2 + (p0 * a1 - p1 * a0 + r0 * b1 - r1 * b0) / 12.0
+    out[3] = w0 + 0.5 * b0 + (p1 * b2 - p2 * b1) / 12.0
+    out[4] = w1 + 0.5 * b1 + (p2 * b0 - p0 * b2) / 12.0
+    out[5] = w2 + 0.5 * b2 + (p0 * b1 - p1 * b0) / 12.0
     return out
 
 

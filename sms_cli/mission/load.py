@@ -28,10 +28,12 @@ class LoadedMission:
     source: SourceMap
     text: str
 
-    def resolve(self, relative: str) -> Path:
-        """A path from the mission file, relative to the mission file's folder."""
+    def resolve(self, relative: str, key: tuple[Any, ...] = ()) -> Path:
+        """A path written in the mission, relative to the folder of the file that wrote it
+        (the mission itself, or the file it ``extends``); ``key`` is where it was written."""
         p = Path(relative)
-        return p if p.is_absolute() else (self.path.parent / p).resolve()
+        base = self.source.file_of(key) if key else self.path
+        return p if p.is_absolute() else (Path(base).parent / p).resolve()
 
 
 def _unwrap(tp: Any) -> list[Any]:
@@ -103,13 +105,44 @@ def validation_problems(exc: ValidationError, root: type[BaseModel], smap: Sourc
     return problems
 
 
-def load_mission(path: Path | str) -> LoadedMission:
-    """Read and validate a mission file. Raises ``InputError`` listing every problem found."""
-    path = Path(path).resolve() if Path(path).exists() else Path(path)
+def _merge(parent: Any, child: Any) -> Any:
+    """Deep merge for ``extends``: mappings merge key by key; anything else in the child replaces."""
+    if isinstance(parent, dict) and isinstance(child, dict):
+        out = dict(parent)
+        for k, v in child.items():
+            out[k] = _merge(parent[k], v) if k in parent else v
+        return out
+    return child
+
+
+def _load_tree(path: Path, chain: tuple[Path, ...] = ()) -> tuple[dict, SourceMap]:
+    """A mission file's data with its ``extends`` chain applied (parents first)."""
     data, smap = load_yaml(path)
     if not isinstance(data, dict):
         raise InputError(problems=[Problem("a mission file is a mapping (key: value) at the top level",
                                            smap.locate(()), hint="start from one of the files in missions/")])
+    parent_ref = data.pop("extends", None)
+    if parent_ref is None:
+        return data, smap
+    where = smap.locate(("extends",))
+    if not isinstance(parent_ref, str):
+        raise InputError(problems=[Problem("extends: expected the path of another mission file", where, "extends")])
+    parent_path = (path.parent / parent_ref).resolve()
+    if parent_path in chain + (path.resolve(),):
+        raise InputError(problems=[Problem(f"extends forms a cycle through {parent_path.name}", where, "extends")])
+    if not parent_path.exists():
+        raise InputError(problems=[Problem(f"extends: no such file {parent_path}", where, "extends",
+                                           "the path is relative to this mission file")])
+    parent_data, parent_smap = _load_tree(parent_path, chain + (path.resolve(),))
+    smap.inherit(parent_smap)
+    return _merge(parent_data, data), smap
+
+
+def load_mission(path: Path | str) -> LoadedMission:
+    """Read and validate a mission file (with its ``extends`` chain). Raises ``InputError``
+    listing every problem found."""
+    path = Path(path).resolve() if Path(path).exists() else Path(path)
+    data, smap = _load_tree(path)
     try:
         mission = Mission.model_validate(data)
     except ValidationError as exc:

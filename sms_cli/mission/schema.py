@@ -13,12 +13,16 @@ from sms_cli.mission.system import (
     SpringSpec,
     WheelsSpec,
 )
+from sms_cli.analysis.schema import AnalysisSpec
 from sms_cli.orbit.schema import BudgetSpec
 
 
 class Mission(StrictModel):
     """A servicing mission: the robot, its spacecraft extras and the stages to run."""
 
+    extends: str | None = Field(
+        None, description="another mission file (relative path) this one starts from: mappings merge key by key, "
+                          "anything else written here replaces the inherited value")
     name: str = Field(description="short mission name (used in reports)")
     description: str = Field("", description="what this mission studies; cite the source")
     robot: RobotSpec | None = Field(None, description="the URDF robot (optional for budget-only missions)")
@@ -30,3 +34,5 @@ class Mission(StrictModel):
     budget: BudgetSpec | None = Field(
         None, description="orbital ΔV, propellant and burn-time budget (sms budget): orbit, propulsion, "
                           "spacecraft masses and a manoeuvre sequence (or several scenarios)")
+    analysis: AnalysisSpec | None = Field(
+        None, description="workspace sampling, kinematic indices, design variants and modal analysis (sms analyze)")

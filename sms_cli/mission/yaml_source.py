@@ -26,6 +26,22 @@ class SourceMap:
     file: Path
     values: dict[KeyPath, tuple[int, int]] = field(default_factory=dict)
     keys: dict[KeyPath, tuple[int, int]] = field(default_factory=dict)
+    files: dict[KeyPath, Path] = field(default_factory=dict)  # entries inherited from another file (extends:)
+
+    def file_of(self, path: KeyPath) -> Path:
+        """The file that defined the value at ``path`` (or its nearest ancestor)."""
+        path = tuple(path)
+        while path and path not in self.values and path not in self.keys:
+            path = path[:-1]
+        return self.files.get(path, self.file)
+
+    def inherit(self, parent: "SourceMap") -> None:
+        """Add the parent's positions for every path this file does not define itself."""
+        for table, ptable in ((self.values, parent.values), (self.keys, parent.keys)):
+            for k, pos in ptable.items():
+                if k not in table:
+                    table[k] = pos
+                    self.files[k] = parent.files.get(k, parent.file)
 
     def locate(self, path: KeyPath, prefer_key: bool = False) -> Location:
         """Best location for a path: the exact value or key, else the nearest ancestor."""
@@ -35,7 +51,7 @@ class SourceMap:
             for t in table:
                 if path in t:
                     line, col = t[path]
-                    return Location(self.file, line, col)
+                    return Location(self.files.get(path, self.file), line, col)
             if not path:
                 return Location(self.file)
             path = path[:-1]

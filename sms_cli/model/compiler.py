@@ -81,7 +81,7 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
         raise InputError(problems=[Problem("this mission has no robot", _where(loaded),
                                            hint="add a 'robot:' section with 'urdf: path/to/robot.urdf'")])
     warnings = Warnings()
-    urdf_path = loaded.resolve(mission.robot.urdf)
+    urdf_path = loaded.resolve(mission.robot.urdf, ("robot", "urdf"))
     if not urdf_path.exists():
         raise InputError(problems=[Problem(f"URDF file not found: {urdf_path}", _where(loaded, "robot", "urdf"), "robot.urdf",
                                            "the path is relative to the mission file")])

@@ -1,0 +1,191 @@
+"""``sms analyze``: workspace study (indices per sample, per variant), plots, table, modal analysis.
+
+Writes into the results folder: ``analysis_<variant>.csv`` (one row per sample), PNG plots
+``analysis_<variant>_<index>.png`` / ``_hist.png`` / ``_slices.png``, ``analysis_compare_<index>.png``,
+``modal_<k>.npz|.mat``, and the ``analysis`` section of results.json.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sms_cli.analysis.schema import AnalysisSpec
+from sms_cli.errors import InputError, Problem
+from sms_cli.results import ResultsDir
+
+
+def _modal_configuration(sm, conf: dict, loaded, i: int) -> np.ndarray:
+    """q0 with the named joints (arm joints or spring joints) set."""
+    q = sm.q0.copy()
+    known = {a.name: (a.q_index, a.kind) for a in sm.arm}
+    known.update({s.joint: (s.q_index, "revolute") for s in sm.springs})
+    for name, value in conf.items():
+        if name not in known:
+            import difflib
+
+            close = difflib.get_close_matches(name, list(known), n=1)
+            raise InputError(problems=[Problem(
+                f"analysis.modal.configurations[{i}]: no arm or spring joint named '{name}'",
+                loaded.source.locate(("analysis", "modal", "configurations", i, name)) if loaded else None,
+                hint=f"did you mean '{close[0]}'?" if close else f"joints: {', '.join(known)}")])
+        qi, kind = known[name]
+        if kind == "continuous":
+            q[qi:qi + 2] = [np.cos(value), np.sin(value)]
+        else:
+            q[qi] = value
+    return q
+
+
+def run_modal(sm, spec: AnalysisSpec, out: Path, loaded=None) -> list[dict]:
+    """Linear models and coupled modes at each configuration of ``analysis.modal``."""
+    from sms_cli.analysis.modal import coupled_modes, export, linearize
+
+    results = []
+    clamped = sorted(float(w) for a in sm.appendages for w in a.omega)
+    for i, conf in enumerate(spec.modal.configurations):
+        q = _modal_configuration(sm, conf, loaded, i)
+        lin = linearize(sm, q, spec.modal.joints)
+        files = export(lin, out / f"modal_{i}", spec.modal.export)
+        results.append({
+            "configuration": {k: float(v) for k, v in conf.items()}, "joints": spec.modal.joints,
+            "states": len(lin.states), "inputs": lin.inputs, "equilibrium_residual": lin.residual,
+            "modes": coupled_modes(lin), "clamped_frequencies_rad_s": clamped,
+            "files": [p.name for p in files]})
+    return results
+
+
+def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, progress: bool | None = None) -> dict:
+    """Run the study of a loaded mission; return the ``analysis`` section written to results.json."""
+    from sms_cli.analysis import plots as P
+    from sms_cli.analysis.sampling import Progress
+    from sms_cli.analysis.summary import Comparison, StudyStats
+    from sms_cli.analysis.table import csv_table
+    from sms_cli.analysis.workspace import build_variants, evaluate_block, make_sampler
+    from sms_cli.model import compile_system
+
+    spec = loaded.mission.analysis or AnalysisSpec()
+    out = Path(results_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sm = compile_system(loaded)
+    section: dict = {"defaults_used": loaded.mission.analysis is None}
+    if not sm.arm:
+        raise InputError(problems=[Problem("the robot has no arm joint to sample", hint="list robot.arm_joints")])
+    sampler, sampled = make_sampler(sm, spec, loaded)
+    variants = build_variants(sm, spec, sampled, loaded)
+    qcols = [f"q_{n}" for n in sampler.names]
+    grid_values = [r.grid(spec.sampling.n) for r in sampler.ranges] if sampler.method == "grid" else None
+    stats = {v.name: StudyStats(v.kernel.columns, sampler.names, [(r.lower, r.upper) for r in sampler.ranges], grid_values,
+                                best=spec.best, seed=spec.sampling.seed) for v in variants}
+    comps = {v.name: Comparison(v.kernel.columns) for v in variants[1:]}
+    bar = Progress(sampler.total * len(variants), f"analyze {loaded.mission.name}", enabled=progress)
+    t_compute = 0.0
+    t0 = time.perf_counter()
+    tables = {}
+    with contextlib.ExitStack() as stack:
+        if spec.table:
+            for v in variants:
+                tables[v.name] = stack.enter_context(csv_table(out / f"analysis_{v.name}.csv", qcols + v.kernel.columns))
+        done = 0
+        for block in sampler.chunks():
+            tc = time.perf_counter()
+            _, res = evaluate_block(variants, block)
+            t_compute += time.perf_counter() - tc
+            for v, r in zip(variants, res):
+                if v.name in tables:
+                    tables[v.name].write({**{c: block[:, j] for j, c in enumerate(qcols)}, **r})
+                stats[v.name].add(block, r, done)
+                if v.name in comps:
+                    comps[v.name].add(res[0], r)
+            done += len(block)
+            bar.update(len(block) * len(variants))
+    bar.close()
+    t_total = time.perf_counter() - t0
+
+    section.update({
+        "samples": sampler.total, "method": sampler.method, "n": spec.sampling.n,
+        "joints": [{"name": r.name, "lower": r.lower, "upper": r.upper} for r in sampler.ranges],
+        "symmetry": spec.sampling.symmetry.model_dump() if spec.sampling.symmetry else None,
+        "task": variants[0].kernel.task, "singular_tolerance": spec.singular_tolerance,
+        "timing": {"compute_s": t_compute, "total_s": t_total,
+                   "samples_per_s": sampler.total * len(variants) / t_compute if t_compute > 0 else None},
+        "variants": {}, "comparison": {}, "artifacts": [],
+    })
+    for v in variants:
+        st = stats[v.name].summary()
+        idx = st["indices"]
+        section["variants"][v.name] = {
+            **st, "limits": v.limits, "skipped": dict(v.kernel.L.skipped),
+            "singular_fraction": idx["singular"]["mean"] if "singular" in idx else None,
+            "K_m_worst": idx["K_m"]["max"] if "K_m" in idx else None,
+            "h_ratio_worst": idx["h_ratio"]["max"] if "h_ratio" in idx else None,
+        }
+        if v.name in tables:
+            section["artifacts"].append(f"analysis_{v.name}.csv")
+    for name, comp in comps.items():
+        section["comparison"][name] = comp.summary()
+
+    if spec.plots if plots is None else plots:
+        section["artifacts"] += [p.name for p in _plots(P, out, variants, stats, loaded.mission.name)]
+    if spec.modal is not None:
+        section["modal"] = run_modal(sm, spec, out, loaded)
+        for m in section["modal"]:
+            section["artifacts"] += m["files"]
+    ResultsDir(out).update("analysis", section)
+    return section
+
+
+def _plots(P, out: Path, variants, stats, mission: str) -> list[Path]:
+    files = []
+    clouds = {}
+    for v in variants:
+        st = stats[v.name]
+        rows = st.plot.rows
+        cols = st.columns
+        if not rows.size:
+            continue
+        xyz = rows[:, [cols.index("ee_x"), cols.index("ee_y"), cols.index("ee_z")]]
+        clouds[v.name] = (xyz, rows, cols)
+        for c in P.KEY_COLUMNS:
+            if c in cols:
+                files.append(P.cloud(out / f"analysis_{v.name}_{c}.png", xyz, rows[:, cols.index(c)], c,
+                                     f"{mission} ({v.name}): {P.LABELS.get(c, c)}, EE positions in the satellite frame"))
+        files.append(P.histograms(out / f"analysis_{v.name}_hist.png", st.res.rows, cols, f"{mission} ({v.name})"))
+        files.append(P.slices(out / f"analysis_{v.name}_slices.png", st.slices(), cols, f"{mission} ({v.name})"))
+    if len(clouds) > 1:
+        for c in ("K_m", "mu_null_lin_norm"):
+            if all(c in cl[2] for cl in clouds.values()):
+                items = [(n, xyz, rows[:, cols.index(c)]) for n, (xyz, rows, cols) in clouds.items()]
+                files.append(P.compare_clouds(out / f"analysis_compare_{c}.png", items, c,
+                                              f"{mission}: {P.LABELS.get(c, c)} per variant (seed 004 Fig. 3.6-3.8 views)"))
+    return files
+
+
+def format_analysis(section: dict) -> str:
+    """A short human-readable summary of the ``analysis`` section."""
+    lines = [f"samples: {section['samples']:,} ({section['method']}, task rows: {section['task']}), "
+             f"compute {section['timing']['compute_s']:.3f} s, total {section['timing']['total_s']:.2f} s"]
+    keys = ("K_m", "mu_gjm", "mu_ratio", "mu_dyn", "mu_null_lin_norm", "h_ratio", "joint_limit_margin")
+    for name, v in section["variants"].items():
+        lines.append(f"[{name}]")
+        for k in keys:
+            d = v["indices"].get(k)
+            if d and d["min"] is not None:
+                lines.append(f"  {k:20s} min {d['min']:.4g}  p50 {d.get('p50', float('nan')):.4g}  max {d['max']:.4g}")
+        if v.get("singular_fraction") is not None:
+            lines.append(f"  singular fraction     {v['singular_fraction']:.4f}")
+        for g, why in v["skipped"].items():
+            lines.append(f"  skipped {g}: {why}")
+    for name, comp in section.get("comparison", {}).items():
+        if "K_m" in comp:
+            c = comp["K_m"]
+            lines.append(f"[{name} vs nominal] K_m lower at {100 * c['fraction_lower']:.1f}% of samples "
+                         f"(change {c['min_change']:.3g} .. {c['max_change']:.3g})")
+    for i, m in enumerate(section.get("modal", [])):
+        fr = ", ".join(f"{x['frequency_hz']:.3g}" for x in m["modes"][:12])
+        lines.append(f"modal[{i}] ({m['joints']} joints): coupled modes (Hz): {fr or 'none'}")
+    lines.append(f"wrote {len(section['artifacts'])} files")
+    return "\n".join(lines)

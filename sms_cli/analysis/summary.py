@@ -1,0 +1,183 @@
+"""Streaming statistics of the index columns in bounded memory.
+
+Per column: count, NaN count, min, max, mean (exact), percentiles from a uniform reservoir of at
+most ``reservoir`` rows (exact while the study is smaller), the best configurations (top-k),
+slices along each sampled joint (min / mean / max per joint-value bin), and a plotting subset.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sms_cli.analysis.indices import HIGHER_IS_BETTER
+
+PERCENTILES = (1, 5, 50, 95, 99)
+
+
+class Reservoir:
+    """Uniform random subset of at most ``size`` rows of a stream (algorithm R, seeded)."""
+
+    def __init__(self, size: int, ncols: int, seed: int = 0):
+        self.size = size
+        self.data = np.empty((size, ncols))
+        self.seen = 0
+        self.rng = np.random.default_rng(seed)
+
+    def add(self, rows: np.ndarray) -> None:
+        k = len(rows)
+        free = max(0, min(self.size - self.seen, k))
+        if free:
+            self.data[self.seen:self.seen + free] = rows[:free]
+        if free < k:
+            idx = np.arange(self.seen + free, self.seen + k)  # global indices of the rest
+            j = (self.rng.random(len(idx)) * (idx + 1)).astype(np.int64)
+            keep = j < self.size
+            self.data[j[keep]] = rows[free:][keep]
+        self.seen += k
+
+    @property
+    def rows(self) -> np.ndarray:
+        return self.data[: min(self.seen, self.size)]
+
+
+class StudyStats:
+    """Statistics of one variant's columns over a streamed study."""
+
+    def __init__(self, columns: list[str], joint_names: list[str], joint_ranges: list[tuple[float, float]],
+                 grid_values: list[np.ndarray] | None, *, best: int = 5, reservoir: int = 200_000,
+                 plot_points: int = 30_000, bins: int = 40, seed: int = 0):
+        self.columns = list(columns)
+        self.joints = list(joint_names)
+        self.best_k = best
+        n = len(self.columns)
+        self.count = 0
+        self.nan = np.zeros(n, dtype=np.int64)
+        self.min = np.full(n, np.inf)
+        self.max = np.full(n, -np.inf)
+        self.sum = np.zeros(n)
+        self.res = Reservoir(reservoir, n, seed)
+        self.plot = Reservoir(plot_points, n + len(self.joints), seed + 1)
+        # Slices: bin edges per joint (grid: one bin per grid value).
+        self.edges = []
+        for j, (lo, hi) in enumerate(joint_ranges):
+            if grid_values is not None:
+                g = np.asarray(grid_values[j], float)
+                mids = 0.5 * (g[1:] + g[:-1]) if len(g) > 1 else np.zeros(0)
+                self.edges.append((g, mids))
+            else:
+                e = np.linspace(lo, hi, bins + 1)
+                self.edges.append((0.5 * (e[1:] + e[:-1]), e[1:-1]))
+        nb = [len(c) for c, _ in self.edges]
+        self.s_min = [np.full((b, n), np.inf) for b in nb]
+        self.s_max = [np.full((b, n), -np.inf) for b in nb]
+        self.s_sum = [np.zeros((b, n)) for b in nb]
+        self.s_cnt = [np.zeros((b, n), dtype=np.int64) for b in nb]
+        self.top: dict[str, list[tuple[float, int, np.ndarray, np.ndarray]]] = {c: [] for c in self.columns}
+
+    def add(self, samples: np.ndarray, block: dict[str, np.ndarray], first_index: int) -> None:
+        """Add a block: sample rows (k × n_joints) and the index columns."""
+        X = np.column_stack([np.asarray(block[c], float) for c in self.columns])
+        k = len(X)
+        finite = np.isfinite(X)
+        self.count += k
+        self.nan += np.sum(np.isnan(X), axis=0)
+        Xmin = np.where(finite, X, np.inf)
+        Xmax = np.where(finite, X, -np.inf)
+        self.min = np.minimum(self.min, Xmin.min(axis=0))
+        self.max = np.maximum(self.max, Xmax.max(axis=0))
+        self.sum += np.where(finite, X, 0.0).sum(axis=0)
+        self.res.add(X)
+        self.plot.add(np.column_stack([X, samples]))
+        for j, (_, inner) in enumerate(self.edges):
+            b = np.searchsorted(inner, samples[:, j])
+            np.minimum.at(self.s_min[j], b, Xmin)
+            np.maximum.at(self.s_max[j], b, Xmax)
+            np.add.at(self.s_sum[j], b, np.where(finite, X, 0.0))
+            np.add.at(self.s_cnt[j], b, finite.astype(np.int64))
+        if self.best_k:
+            self._update_top(samples, X, finite, first_index)
+
+    def _update_top(self, samples, X, finite, first_index) -> None:
+        ee = [self.columns.index(c) if c in self.columns else None for c in ("ee_x", "ee_y", "ee_z")]
+        for ci, c in enumerate(self.columns):
+            if c.startswith("ee_") or c == "singular":
+                continue
+            sign = 1.0 if HIGHER_IS_BETTER.get(c, True) else -1.0
+            score = np.where(finite[:, ci], sign * X[:, ci], -np.inf)
+            k = min(self.best_k, len(score))
+            idx = np.argpartition(-score, k - 1)[:k]
+            cand = self.top[c] + [(float(score[i]), first_index + int(i), samples[i].copy(),
+                                   np.array([X[i, e] for e in ee if e is not None])) for i in idx if np.isfinite(score[i])]
+            cand.sort(key=lambda t: -t[0])
+            self.top[c] = cand[: self.best_k]
+
+    def summary(self) -> dict:
+        """JSON-ready: per column min/max/mean/percentiles/NaN count, and the best configurations."""
+        out = {}
+        R = self.res.rows
+        exact = self.res.seen <= self.res.size
+        for ci, c in enumerate(self.columns):
+            vals = R[:, ci]
+            vals = vals[np.isfinite(vals)]
+            d = {"min": self.min[ci] if np.isfinite(self.min[ci]) else None,
+                 "max": self.max[ci] if np.isfinite(self.max[ci]) else None,
+                 "mean": self.sum[ci] / max(self.count - self.nan[ci], 1) if self.count > self.nan[ci] else None,
+                 "nan": int(self.nan[ci])}
+            if vals.size:
+                d.update({f"p{p:02d}": float(v) for p, v in zip(PERCENTILES, np.percentile(vals, PERCENTILES))})
+            out[c] = d
+        best = {}
+        for c, lst in self.top.items():
+            if not lst:
+                continue
+            sign = 1.0 if HIGHER_IS_BETTER.get(c, True) else -1.0
+            best[c] = [{"value": sign * s, "sample": i, "q": dict(zip(self.joints, map(float, q))),
+                        "ee": [float(x) for x in ee]} for s, i, q, ee in lst]
+        return {"indices": out, "percentiles_exact": bool(exact), "best": best}
+
+    def slices(self) -> list[dict]:
+        """Per sampled joint: bin centres and per-column min / mean / max arrays (NaN where empty)."""
+        out = []
+        for j, (centres, _) in enumerate(self.edges):
+            cnt = self.s_cnt[j]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                mean = np.where(cnt > 0, self.s_sum[j] / cnt, np.nan)
+            mn = np.where(np.isfinite(self.s_min[j]), self.s_min[j], np.nan)
+            mx = np.where(np.isfinite(self.s_max[j]), self.s_max[j], np.nan)
+            out.append({"joint": self.joints[j], "x": centres, "min": mn, "mean": mean, "max": mx})
+        return out
+
+
+class Comparison:
+    """Sample-by-sample comparison of a variant with the nominal system (same samples)."""
+
+    def __init__(self, columns: list[str]):
+        self.columns = [c for c in columns if not c.startswith("ee_") and c != "singular"]
+        n = len(self.columns)
+        self.lower = np.zeros(n, dtype=np.int64)
+        self.higher = np.zeros(n, dtype=np.int64)
+        self.valid = np.zeros(n, dtype=np.int64)
+        self.dmin = np.full(n, np.inf)
+        self.dmax = np.full(n, -np.inf)
+
+    def add(self, nominal: dict[str, np.ndarray], variant: dict[str, np.ndarray]) -> None:
+        for i, c in enumerate(self.columns):
+            if c not in nominal or c not in variant:
+                continue
+            d = variant[c] - nominal[c]
+            ok = np.isfinite(d)
+            self.valid[i] += ok.sum()
+            self.lower[i] += (d[ok] < 0).sum()
+            self.higher[i] += (d[ok] > 0).sum()
+            if ok.any():
+                self.dmin[i] = min(self.dmin[i], d[ok].min())
+                self.dmax[i] = max(self.dmax[i], d[ok].max())
+
+    def summary(self) -> dict:
+        out = {}
+        for i, c in enumerate(self.columns):
+            if self.valid[i] == 0:
+                continue
+            out[c] = {"fraction_lower": self.lower[i] / self.valid[i], "fraction_higher": self.higher[i] / self.valid[i],
+                      "min_change": self.dmin[i], "max_change": self.dmax[i], "samples": int(self.valid[i])}
+        return out

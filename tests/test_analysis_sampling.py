@@ -1,0 +1,117 @@
+"""Workspace sampling, streamed statistics and the analysis schema."""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from sms_cli.analysis.sampling import JointRange, Progress, Sampler
+from sms_cli.analysis.schema import AnalysisSpec
+from sms_cli.analysis.summary import Comparison, Reservoir, StudyStats
+
+
+def test_grid_covers_every_combination_once():
+    r = [JointRange("a", 0, 1), JointRange("b", -1, 1), JointRange("c", 0, 2)]
+    s = Sampler(r, "grid", 5, chunk=7)
+    rows = np.vstack(list(s.chunks()))
+    assert s.total == 125 and rows.shape == (125, 3)
+    assert len({tuple(x) for x in rows}) == 125
+    np.testing.assert_allclose(np.unique(rows[:, 1]), np.linspace(-1, 1, 5))
+    assert np.all(np.diff(rows[:, 0]) >= 0)  # first joint varies slowest
+
+
+def test_periodic_joint_grid_skips_duplicate_end():
+    g = JointRange("yaw", -math.pi, math.pi, periodic=True).grid(8)
+    assert len(g) == 8 and g[-1] < math.pi - 1e-9
+
+
+def test_symmetry_halves_a_range():
+    r = JointRange("yaw", -math.pi, math.pi, periodic=True).halved("upper", 0.0)
+    assert (r.lower, r.upper, r.periodic) == (0.0, math.pi, False)
+    assert len(r.grid(19)) == 19 and r.grid(19)[-1] == pytest.approx(math.pi)  # seed 004: 19 values on [0, pi]
+    with pytest.raises(ValueError):
+        JointRange("x", 0, 1).halved("lower", 2.0)
+
+
+def test_sobol_is_deterministic_in_range_and_chunk_independent():
+    r = [JointRange("a", -2, 3), JointRange("b", 0, 0.5)]
+    a = np.vstack(list(Sampler(r, "sobol", 1000, seed=4, chunk=128).chunks()))
+    b = np.vstack(list(Sampler(r, "sobol", 1000, seed=4, chunk=1000).chunks()))
+    np.testing.assert_array_equal(a, b)
+    assert a.shape == (1000, 2) and a[:, 0].min() >= -2 and a[:, 0].max() <= 3
+    # low discrepancy: every tenth of [lo, hi] gets close to 10 % of the points
+    counts = np.histogram(a[:, 0], bins=10, range=(-2, 3))[0]
+    assert counts.min() >= 90 and counts.max() <= 110
+
+
+def test_a_million_samples_stream_in_bounded_chunks():
+    s = Sampler([JointRange("a", 0, 1), JointRange("b", 0, 1)], "grid", 1000, chunk=4096)
+    assert s.total == 1_000_000
+    sizes = [len(c) for c in s.chunks()]
+    assert sum(sizes) == 1_000_000 and max(sizes) == 4096
+
+
+def test_progress_writes_to_its_stream():
+    buf = io.StringIO()
+    p = Progress(10, "x", stream=buf, enabled=True, min_interval=0)
+    p.update(5)
+    assert "50.0%" in buf.getvalue()
+    p.update(5)
+    p.close()
+    assert "10/10" in buf.getvalue() and buf.getvalue().endswith("\n")
+
+
+def test_reservoir_is_exact_until_full_then_uniform():
+    r = Reservoir(100, 1, seed=0)
+    r.add(np.arange(60.0)[:, None])
+    np.testing.assert_array_equal(r.rows[:, 0], np.arange(60.0))
+    for start in range(60, 20060, 500):
+        r.add(np.arange(start, start + 500.0)[:, None])
+    assert r.rows.shape == (100, 1) and len(np.unique(r.rows)) == 100
+    assert 5000 < r.rows.mean() < 15000  # a uniform subset of 0..20059 (mean 10030)
+
+
+def test_stats_min_max_percentiles_best_and_slices():
+    rng = np.random.default_rng(0)
+    samples = rng.uniform(0, 1, size=(1000, 2))
+    vals = {"ee_x": samples[:, 0], "ee_y": samples[:, 1], "ee_z": 0 * samples[:, 0],
+            "K_m": samples[:, 0] * samples[:, 1], "mu_gjm": samples[:, 0] + 1.0}
+    vals["mu_gjm"][3] = np.nan
+    st = StudyStats(list(vals), ["a", "b"], [(0, 1), (0, 1)], None, best=3, bins=4)
+    for k in range(0, 1000, 250):
+        st.add(samples[k:k + 250], {c: v[k:k + 250] for c, v in vals.items()}, k)
+    s = st.summary()
+    assert s["indices"]["K_m"]["max"] == pytest.approx(vals["K_m"].max())
+    assert s["indices"]["K_m"]["p50"] == pytest.approx(np.percentile(vals["K_m"], 50))
+    assert s["indices"]["mu_gjm"]["nan"] == 1
+    assert s["best"]["K_m"][0]["value"] == pytest.approx(vals["K_m"].min())  # lower K_m is better
+    assert s["best"]["mu_gjm"][0]["value"] == pytest.approx(np.nanmax(vals["mu_gjm"]))
+    sl = st.slices()[0]
+    ci = st.columns.index("K_m")
+    in_bin = samples[:, 0] < 0.25
+    assert sl["max"][0, ci] == pytest.approx(vals["K_m"][in_bin].max())
+
+
+def test_comparison_counts():
+    c = Comparison(["K_m"])
+    c.add({"K_m": np.array([0.5, 0.6, np.nan])}, {"K_m": np.array([0.4, 0.7, 0.1])})
+    s = c.summary()["K_m"]
+    assert s["fraction_lower"] == 0.5 and s["samples"] == 2 and s["min_change"] == pytest.approx(-0.1)
+
+
+def test_schema_accepts_units_and_rejects_typos():
+    a = AnalysisSpec.model_validate({"sampling": {"method": "grid", "n": 19, "symmetry": {"joint": "j1", "about": "0 deg"},
+                                                  "ranges": {"rail": ["0 m", "2 m"], "j2": ["-90 deg", "90 deg"]}},
+                                     "limits": {"joint_speed": "0.5 rpm", "wheel_speed": {"rw1": "2800 rpm"}}})
+    assert a.limits.joint_speed == pytest.approx(0.5 * 2 * math.pi / 60)
+    assert a.sampling.ranges["j2"][0] == pytest.approx(-math.pi / 2)
+    with pytest.raises(ValidationError):
+        AnalysisSpec.model_validate({"sampling": {"methd": "grid"}})
+    with pytest.raises(ValidationError):
+        AnalysisSpec.model_validate({"sampling": {"ranges": {"j": [1, 0]}}})
+    with pytest.raises(ValidationError):
+        AnalysisSpec.model_validate({"variants": [{"name": "nominal"}]})
