@@ -188,6 +188,23 @@ def schema_cmd(
     run_guarded(body)
 
 
+@app.command("inspect")
+def inspect_cmd(
+    recording: Annotated[Path, typer.Argument(help="MCAP recording written by `sms simulate`", show_default=False)],
+    as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
+) -> None:
+    """Summarise a simulation recording (MCAP): topics, schemas, message counts, time span, rates, metadata, run status."""
+
+    def body() -> int:
+        from sms_cli.sim.inspect import format_inspection, inspect_recording
+
+        info = inspect_recording(recording)
+        typer.echo(json.dumps(info, indent=2) if as_json else format_inspection(info))
+        return 0
+
+    run_guarded(body)
+
+
 def main() -> None:
     """Console-script entry point."""
     try:

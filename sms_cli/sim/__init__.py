@@ -1,0 +1,1 @@
+"""Simulation: scenario sequencing, actuators and sensors, metrics, and MCAP recording."""
