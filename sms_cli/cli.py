@@ -167,6 +167,33 @@ def analyze_cmd(
     run_guarded(body)
 
 
+@app.command("simulate")
+def simulate_cmd(
+    mission: MissionArg,
+    out: Annotated[
+        Optional[Path],
+        typer.Option("--out", "-o", help="results folder (default results/<mission>/); a path ending in .mcap "
+                                         "instead names the recording (results then go to the default folder)"),
+    ] = None,
+    progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar (default: on a terminal)")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print the metrics as JSON")] = False,
+) -> None:
+    """Nonlinear simulation of the mission's phases; records simulation.mcap (Foxglove) and metrics."""
+
+    def body() -> int:
+        from sms_cli.mission.load import load_mission
+        from sms_cli.sim.report import format_simulation
+        from sms_cli.sim.stage import run_simulation
+
+        mcap_path = out if out is not None and out.suffix == ".mcap" else None
+        folder = default_out(mission, None if mcap_path else out)
+        section = run_simulation(load_mission(mission), folder, mcap_path, progress)
+        typer.echo(json.dumps(section, indent=2) if as_json else format_simulation(section))
+        return 0
+
+    run_guarded(body)
+
+
 @app.command("schema")
 def schema_cmd(
     output: Annotated[Optional[Path], typer.Option("--output", "-o", help="write to this file instead of stdout")] = None,

@@ -71,6 +71,8 @@ def _models_at(root: type[BaseModel], loc: tuple[Any, ...]) -> list[type[BaseMod
 
 def _suggest(bad: str, candidates: list[str]) -> str:
     close = difflib.get_close_matches(str(bad), candidates, n=1, cutoff=0.5)
+    if close and close[0] == str(bad):
+        return f"'{bad}' belongs to another variant of this section; here the valid keys are the ones documented for it (sms schema)"
     if close:
         return f"did you mean '{close[0]}'?"
     return "valid keys here: " + ", ".join(sorted(candidates))
@@ -105,9 +107,16 @@ def validation_problems(exc: ValidationError, root: type[BaseModel], smap: Sourc
     return problems
 
 
+_DISCRIMINATORS = ("law", "type", "layout", "kind")
+
+
 def _merge(parent: Any, child: Any) -> Any:
-    """Deep merge for ``extends``: mappings merge key by key; anything else in the child replaces."""
+    """Deep merge for ``extends``: mappings merge key by key; anything else in the child replaces.
+    A mapping that names another variant (a different ``law:``/``type:``/``layout:``/``kind:``)
+    replaces the inherited one instead of merging into it."""
     if isinstance(parent, dict) and isinstance(child, dict):
+        if any(k in parent and k in child and parent[k] != child[k] for k in _DISCRIMINATORS):
+            return child
         out = dict(parent)
         for k, v in child.items():
             out[k] = _merge(parent[k], v) if k in parent else v

@@ -15,6 +15,7 @@ from sms_cli.mission.system import (
 )
 from sms_cli.analysis.schema import AnalysisSpec
 from sms_cli.orbit.schema import BudgetSpec
+from sms_cli.sim.schema import SimulationSpec
 
 
 class Mission(StrictModel):
@@ -36,3 +37,5 @@ class Mission(StrictModel):
                           "spacecraft masses and a manoeuvre sequence (or several scenarios)")
     analysis: AnalysisSpec | None = Field(
         None, description="workspace sampling, kinematic indices, design variants and modal analysis (sms analyze)")
+    simulation: SimulationSpec | None = Field(
+        None, description="nonlinear simulation (sms simulate): steps, controllers, actuators, sensors, phases")

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg.lapack import dposv as _dposv
 
 from sms_cli.model.conventions import seed_map
 
@@ -306,7 +307,7 @@ class SystemModel:
     def _forward_dynamics_base_modes(self, q, v, eta, etadot, tau):
         """Schur complement on the modal block: (H − BᵀB) v̇ = τ − h − g − Bᵀ r_η, η̈ = r_η − B v̇."""
         B = self._base_B
-        H = _symmetric(pin.crba(self.model, self.data, q))
+        H = pin.crba(self.model, self.data, q).copy()  # dposv reads the upper triangle only
         H[:6, :6] -= self._base_BtB
         rhs = tau - pin.nonLinearEffects(self.model, self.data, q, v)
         if self.springs:
@@ -319,7 +320,9 @@ class SystemModel:
                     vx * fy - vy * fx + wx * ny - wy * nx)
         r_eta = -(self._omega**2) * eta - 2.0 * self._zeta * self._omega * etadot
         rhs[:6] -= B.T @ r_eta
-        vdot = np.linalg.solve(H, rhs)
+        _, vdot, info = _dposv(H, rhs, lower=0, overwrite_a=1, overwrite_b=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"mass matrix with modes is not positive definite (LAPACK dposv info {info})")
         return vdot, r_eta - B @ vdot[:6]
 
     # ------------------------------------------------------------------ momentum and energy

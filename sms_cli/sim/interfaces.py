@@ -38,7 +38,8 @@ class Sensed:
 
 @dataclass
 class AttitudeRef:
-    """Attitude reference: quaternion xyzw (world ← base), ω and ω̇ in the base frame."""
+    """Attitude reference: quaternion xyzw (world ← reference), ω and ω̇ of the reference, expressed in
+    the REFERENCE frame (the laws map them into the base frame)."""
 
     quat: np.ndarray
     omega: np.ndarray = field(default_factory=lambda: np.zeros(3))

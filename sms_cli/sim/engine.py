@@ -1,0 +1,321 @@
+"""The simulation loop: sense → control (ZOH at the control rate) → actuators → plant sub-steps
+(RKMK4) → metrics and recording. Divergence stops the run cleanly and keeps what was recorded."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from sms_cli.dynamics.integrator import State, rkmk4_step
+from sms_cli.model.system import SystemModel
+from sms_cli.sim.actuators import WheelArray, clip_joint_torque
+from sms_cli.sim.attitude_math import attitude_error
+from sms_cli.sim.interfaces import ArmRef, EndEffectorRef
+from sms_cli.sim.metrics import Trace, conservation, summarize
+from sms_cli.sim.references import AttitudeProfile, JointProfile
+from sms_cli.sim.schema import PhaseSpec, SimulationSpec
+from sms_cli.sim.sensors import Sensors
+
+
+class Diverged(Exception):
+    """The plant state became non-finite or exceeded the divergence limits."""
+
+
+@dataclass
+class SimResult:
+    status: str  # completed | diverged
+    t_end: float
+    steps: int
+    phases: list[dict]
+    overall: dict
+    conservation: dict
+    divergence: str = ""
+    timing: dict = field(default_factory=dict)
+    trace: dict = field(default_factory=dict)
+
+
+class Progress:
+    """A one-line progress display on stderr (only when stderr is a terminal)."""
+
+    def __init__(self, total: float, enabled: bool | None = None):
+        self.total = total
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.last = -1
+
+    def update(self, t: float) -> None:
+        if not self.enabled:
+            return
+        pct = int(100 * t / self.total) if self.total > 0 else 100
+        if pct != self.last:
+            self.last = pct
+            sys.stderr.write(f"\r  simulating {t:9.2f} / {self.total:.2f} s  [{'#' * (pct // 4):<25}] {pct:3d}%")
+            sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+class Simulation:
+    """One mission simulation on a compiled SystemModel."""
+
+    def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder=None, progress: bool | None = None):
+        from sms_cli.sim.laws import build_arm_law, build_attitude_law, build_resolved_rate
+
+        self.sm = sm
+        self.spec = spec
+        self.rec = recorder
+        self.sensors = Sensors(sm, spec.sensors)
+        self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
+        self.att_law = build_attitude_law(spec.attitude, sm) if spec.attitude else None
+        self.arm_law = build_arm_law(spec.arm, sm) if spec.arm else None
+        self.rr = build_resolved_rate(spec.resolved_rate, sm) if spec.resolved_rate else None
+        self.dt = spec.dt
+        self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
+        self.total_time = sum(p.duration for p in spec.phases)
+        self.progress = Progress(self.total_time, progress)
+        self.arm_names = [a.name for a in sm.arm]
+        self.link_names = list(sm.link_parents)
+        self.link_fids = [sm.model.getFrameId(n) for n in self.link_names]
+        self._tau = np.zeros(sm.nv)
+        self._fixed = False
+        self._segment = 0
+        self._base_torque = np.zeros(3)
+
+    # ------------------------------------------------------------------ helpers
+    def _accel(self, tau: np.ndarray, fixed: bool = False):
+        fd = self.sm.forward_dynamics_fixed_base if fixed else self.sm.forward_dynamics
+        return lambda q, v, e, ed: fd(q, v, e, ed, tau)
+
+    def _disturbance(self, t: float, q: np.ndarray) -> np.ndarray:
+        w = np.zeros(6)
+        for d in self.spec.disturbances:
+            active = d.kind == "constant" or (d.start <= t < d.start + d.duration)
+            if not active:
+                continue
+            f, n = np.asarray(d.force, float), np.asarray(d.torque, float)
+            if d.frame == "inertial":
+                R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+                f, n = R.T @ f, R.T @ n
+            w += np.concatenate([f, n])
+        return w
+
+    def _check(self, s: State) -> None:
+        lim = self.spec.divergence
+        if not (np.all(np.isfinite(s.v)) and np.all(np.isfinite(s.q)) and np.all(np.isfinite(s.eta))):
+            raise Diverged("the state became non-finite")
+        vmax = float(np.max(np.abs(s.v)))
+        if vmax > lim.max_rate:
+            raise Diverged(f"a generalized velocity reached {vmax:.4g} (limit {lim.max_rate:g})")
+        if s.eta.size and float(np.max(np.abs(s.eta))) > lim.max_modal_amplitude:
+            raise Diverged(f"a modal amplitude exceeded {lim.max_modal_amplitude:g}")
+
+    def _ee_position(self, q: np.ndarray) -> np.ndarray:
+        return self.sm.frame_pose(q, self.sm.ee_frame_id).translation
+
+    # ------------------------------------------------------------------ recording
+    def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec) -> None:
+        rec = self.rec
+        if rec is None or not rec.due(t):
+            return
+        m, d = self.sm.model, self.sm.data
+        pin.framesForwardKinematics(m, d, s.q)
+        poses = np.empty((len(self.link_fids), 7))
+        for i, fid in enumerate(self.link_fids):
+            M = d.oMf[fid]
+            poses[i, :3] = M.translation
+            poses[i, 3:] = pin.Quaternion(M.rotation).coeffs()
+        rpy = pin.rpy.matrixToRpy(d.oMf[self.sm.base_frame_id].rotation)
+        p, k = self.sm.momentum(s.q, s.v, s.etadot)
+        ee = d.oMf[self.sm.ee_frame_id].translation
+        scalars = {
+            "/attitude": {"qx": s.q[3], "qy": s.q[4], "qz": s.q[5], "qw": s.q[6],
+                          "roll_deg": math.degrees(rpy[0]), "pitch_deg": math.degrees(rpy[1]), "yaw_deg": math.degrees(rpy[2])},
+            "/attitude/error": {"angle_deg": math.degrees(float(np.linalg.norm(att_err_vec))), "rotvec": att_err_vec},
+            "/attitude/reference": {"qx": att_ref.quat[0], "qy": att_ref.quat[1], "qz": att_ref.quat[2], "qw": att_ref.quat[3]},
+            "/base/rate": {"x": s.v[3], "y": s.v[4], "z": s.v[5]},
+            "/base/position": {"x": s.q[0], "y": s.q[1], "z": s.q[2]},
+            "/ee/position": {"x": ee[0], "y": ee[1], "z": ee[2]},
+            "/momentum": {"px": p[0], "py": p[1], "pz": p[2], "kx": k[0], "ky": k[1], "kz": k[2]},
+        }
+        if self.sm.wheels:
+            names = [w.name for w in self.sm.wheels]
+            scalars["/wheels/speed"] = dict(zip(names, s.v[self.sm.idx.wheels]))
+            scalars["/wheels/torque"] = dict(zip(names, tau_w))
+        if self.sm.arm:
+            scalars["/joints/position"] = dict(zip(self.arm_names, s.q[[a.q_index for a in self.sm.arm]]))
+            scalars["/joints/rate"] = dict(zip(self.arm_names, s.v[self.sm.idx.arm]))
+            scalars["/joints/torque"] = dict(zip(self.arm_names, tau_m))
+            scalars["/joints/reference"] = dict(zip(self.arm_names, arm_ref.q))
+        if self.sm.n_modes:
+            scalars["/modes/eta"] = {"eta": s.eta}
+        if self._fixed:
+            vd, ed = self.sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, self._tau)
+            w = self.sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
+            scalars["/base/reaction"] = {"fx": w[0], "fy": w[1], "fz": w[2], "nx": w[3], "ny": w[4], "nz": w[5]}
+        rec.write_step(t, transforms=poses, scalars=scalars)
+
+    # ------------------------------------------------------------------ main loop
+    def run(self) -> SimResult:
+        sm, spec = self.sm, self.spec
+        s = State(sm.q0.copy(), sm.v0.copy(), sm.eta0.copy(), sm.etadot0.copy())
+        trace = Trace()
+        t = 0.0
+        steps = 0
+        q_att_ref = s.q[3:7].copy()
+        q_arm_idx = [a.q_index for a in sm.arm]
+        q_arm_ref = s.q[q_arm_idx].copy() if sm.arm else np.zeros(0)
+        status, why = "completed", ""
+        phase_spans: list[tuple[int, float, float]] = []
+        wall0 = time.perf_counter()
+        try:
+            for ip, phase in enumerate(spec.phases):
+                t_phase0 = t
+                self._begin_phase(phase, t)
+                att = AttitudeProfile(q_att_ref, phase.attitude, phase.attitude_profile, phase.slew_time)
+                joints = JointProfile(q_arm_ref, self.arm_names, phase.waypoints, phase.joint_profile)
+                ee_start = self._ee_position(s.q)
+                q_track = q_arm_ref.copy()
+                n_ticks = int(round(phase.duration * spec.control_rate))
+                fixed = self._fixed = phase.base_mode == "fixed"
+                if fixed:
+                    s.v[:6] = 0.0  # the support takes the base's momentum at the phase start
+                settled_since = None
+                for tick in range(n_ticks):
+                    tau_ph = t - t_phase0
+                    sensed = self.sensors.measure(t, s.q, s.v, s.eta, s.etadot)
+                    att_ref = att.at(tau_ph)
+                    ee_err = float("nan")
+                    if phase.end_effector is not None and self.rr is not None:
+                        target = np.asarray(phase.end_effector.position, float) + (ee_start if phase.end_effector.relative_to_start else 0.0)
+                        vel = np.asarray(phase.end_effector.velocity, float)
+                        ee_ref = EndEffectorRef(target + vel * tau_ph, vel)
+                        qd_cmd = self.rr.joint_rates(sensed, ee_ref)
+                        q_track = q_track + qd_cmd / spec.control_rate
+                        arm_ref = ArmRef(q_track.copy(), qd_cmd, np.zeros_like(qd_cmd))
+                        ee_err = float(np.linalg.norm(self._ee_position(s.q) - ee_ref.position))
+                    else:
+                        arm_ref = joints.at(tau_ph)
+                    tau_w, tau_m, base_wrench, sat = self._control(phase, sensed, att_ref, arm_ref)
+                    err_vec = attitude_error(att_ref.quat, s.q[3:7])
+                    self._trace(trace, t, ip, err_vec, arm_ref, s, tau_w, tau_m, sat, ee_err)
+                    if self.wheels.n and (tick % 10 == 0):
+                        self.wheels.update_effective_inertia(s.q)
+                    for _ in range(self.n_sub):
+                        tau = self._tau
+                        tau[:] = 0.0
+                        tau[:6] = base_wrench + (self._disturbance(t, s.q) if spec.disturbances else 0.0)
+                        if self.wheels.n:
+                            ws = s.v[sm.idx.wheels]
+                            tau[sm.idx.wheels] = self.wheels.speed_limited(tau_w, ws, self.dt) + self.wheels.friction_torque(ws)
+                        if sm.arm:
+                            tau[sm.idx.arm] = tau_m
+                        s = rkmk4_step(sm.model, s, self.dt, self._accel(tau.copy(), fixed))
+                        t += self.dt
+                        steps += 1
+                        self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]))
+                    self._check(s)
+                    self.progress.update(t)
+                    if phase.until_settled is not None:
+                        if np.linalg.norm(attitude_error(att_ref.quat, s.q[3:7])) < phase.until_settled:
+                            settled_since = t if settled_since is None else settled_since
+                            if t - settled_since >= phase.settle_time:
+                                break
+                        else:
+                            settled_since = None
+                phase_spans.append((ip, t_phase0, t))
+                q_att_ref = att.at(phase.duration).quat if phase.attitude is not None else q_att_ref
+                q_arm_ref = q_track if phase.end_effector is not None else joints.final
+        except Diverged as exc:
+            status, why = "diverged", str(exc)
+            if self.rec is not None:
+                self.rec.write_event(t, "diverged", {"reason": why}, level="error")
+        finally:
+            self.progress.close()
+        wall = time.perf_counter() - wall0
+        sensed = self.sensors.measure(t, s.q, s.v, s.eta, s.etadot) if status == "completed" else None
+        if sensed is not None and trace.t:
+            last_ref = AttitudeProfile(q_att_ref, None, "step", None).at(0.0)
+            self._trace(trace, t, len(spec.phases) - 1, attitude_error(last_ref.quat, s.q[3:7]),
+                        ArmRef(q_arm_ref, np.zeros_like(q_arm_ref), np.zeros_like(q_arm_ref)), s,
+                        trace.wheel_torque[-1] if trace.wheel_torque else np.zeros(0),
+                        trace.joint_torque[-1] if trace.joint_torque else np.zeros(0), False, float("nan"))
+        return self._result(status, why, t, steps, trace, phase_spans, wall)
+
+    def _begin_phase(self, phase: PhaseSpec, t: float) -> None:
+        if phase.attach or phase.detach or phase.base_mode == "fixed" or self._fixed:
+            self._segment += 1
+        for name in phase.detach:
+            self.sm.detach_payload(name)
+        for name in phase.attach:
+            self.sm.attach_payload(name)
+        if self.rec is not None:
+            self.rec.write_event(t, "phase", {"name": phase.name, "kind": phase.kind, "base_mode": phase.base_mode,
+                                              "attach": phase.attach, "detach": phase.detach})
+
+    def _control(self, phase: PhaseSpec, s, att_ref, arm_ref):
+        """Controller outputs held over the control period: wheel torques, joint torques, base wrench."""
+        sm = self.sm
+        base_wrench = np.zeros(6)
+        tau_w = np.zeros(self.wheels.n)
+        sat = False
+        self._base_torque = np.zeros(3)
+        if phase.base_mode not in ("free-floating", "fixed") and self.att_law is not None:
+            T = np.asarray(self.att_law.torque(s, att_ref), float)
+            self._base_torque = T
+            if phase.base_mode == "free-flying" or self.spec.attitude_actuator == "thrusters":
+                base_wrench[3:6] = T
+            else:
+                tau_w, flags = self.wheels.clip_torque(self.wheels.allocate(T, s.wheel_speed))
+                sat = bool(np.any(flags))
+        tau_m = np.zeros(len(sm.arm))
+        if self.arm_law is not None and sm.arm:
+            tau_m, flags = clip_joint_torque(sm, np.asarray(self.arm_law.torque(s, arm_ref), float))
+            sat = sat or bool(np.any(flags))
+        return tau_w, tau_m, base_wrench, sat
+
+    def _trace(self, tr: Trace, t, ip, err_vec, arm_ref, s: State, tau_w, tau_m, sat, ee_err) -> None:
+        sm = self.sm
+        tr.t.append(t)
+        tr.phase.append(ip)
+        tr.segment.append(self._segment)
+        tr.att_err.append(float(np.linalg.norm(err_vec)))
+        tr.joint_err.append(arm_ref.q - s.q[[a.q_index for a in sm.arm]] if sm.arm else np.zeros(0))
+        tr.ee_err.append(ee_err)
+        tr.wheel_speed.append(s.v[sm.idx.wheels].copy())
+        tr.wheel_torque.append(np.asarray(tau_w, float).copy())
+        tr.joint_torque.append(np.asarray(tau_m, float).copy())
+        tr.saturated.append(sat)
+        tr.base_torque.append(self._base_torque.copy())
+        tr.modal_peak.append(float(np.max(np.abs(s.eta))) if s.eta.size else 0.0)
+        p, k = sm.momentum(s.q, s.v, s.etadot, about="origin")
+        tr.momentum.append(np.concatenate([p, k]))
+        tr.energy.append(sm.energy(s.q, s.v, s.eta, s.etadot))
+        if self._fixed:
+            tau = np.zeros(sm.nv)
+            tau[sm.idx.arm] = tau_m
+            vd, ed = sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, tau)
+            tr.base_reaction.append(sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed))
+        else:
+            tr.base_reaction.append(np.full(6, np.nan))
+
+    def _result(self, status, why, t, steps, trace: Trace, spans, wall) -> SimResult:
+        a = trace.arrays()
+        band = self.spec.settle_tolerance
+        dtc = 1.0 / self.spec.control_rate
+        phases = []
+        for ip, t0, t1 in spans:
+            mask = a["phase"] == ip
+            summary = summarize(a, mask, band, dtc) if np.any(mask) else {}
+            summary.update({"name": self.spec.phases[ip].name, "kind": self.spec.phases[ip].kind, "duration_s": t1 - t0})
+            phases.append(summary)
+        overall = summarize(a, np.ones(a["t"].size, dtype=bool), band, dtc) if a["t"].size else {}
+        timing = {"wall_s": wall, "sim_s": t, "steps": steps, "us_per_step": 1e6 * wall / max(steps, 1),
+                  "real_time_factor": t / wall if wall > 0 else None}
+        return SimResult(status, t, steps, phases, overall, conservation(a, np.array([w.spin_inertia for w in self.sm.wheels])),
+                         why, timing, a)

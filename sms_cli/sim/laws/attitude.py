@@ -1,0 +1,359 @@
+"""Base attitude control laws. Each returns the torque to put on the base (N m, base frame).
+
+Conventions (one place, used by every law here):
+- quaternions [x, y, z, w], Hamilton product, q maps base → world (``Sensed.quat``, ``AttitudeRef.quat``);
+- error quaternion q_e = q_R⁻¹ ⊗ q_B (base relative to the reference), sign chosen so w ≥ 0;
+  its vector part q_v is ≈ θ/2 (θ = rotation vector, base frame) and C = R(q_e) maps base → reference;
+- ``AttitudeRef.omega``/``omega_dot``: rate and acceleration of the reference frame, in the reference
+  frame. In the base frame ω_r = Cᵀ ω_ref and its base-frame derivative is Cᵀ ω̇_ref − ω × ω_r;
+- δω = ω − ω_r; kinematics q̇_v = ½ (q_w I + [q_v×]) δω.
+Inertia J, its rate J̇ and the internal momentum h come from a body model (``plant_models``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sms_cli.sim.interfaces import AttitudeRef, Sensed
+from sms_cli.sim.laws.plant_models import RigidBody, base_rotation
+
+
+def _cross(a, b) -> np.ndarray:
+    """a × b for 3-vectors (plain float arithmetic: several times faster than np.cross)."""
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def _apply(K: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Gain times vector: scalar, per-axis (3,) or full (3×3)."""
+    return K @ x if K.ndim == 2 else K * x
+
+
+def _gain(x) -> np.ndarray:
+    return np.asarray(x, dtype=float)
+
+
+_ZERO3 = np.zeros(3)
+
+
+def _floats(x) -> list:
+    """Python floats of a small vector (numpy scalar arithmetic is slow)."""
+    return x.tolist() if isinstance(x, np.ndarray) else [float(v) for v in x]
+
+
+class TrackingError:
+    """Attitude tracking error of the base at a control instant (see module docstring)."""
+
+    __slots__ = ("q", "C", "omega_r", "domega_r", "dw", "qv", "qw")
+
+    def __init__(self, s: Sensed, ref: AttitudeRef):
+        bx, by, bz, bw = _floats(s.quat)
+        nb = math.sqrt(bx * bx + by * by + bz * bz + bw * bw)
+        rx, ry, rz, rw = _floats(ref.quat)
+        nr = nb * math.sqrt(rx * rx + ry * ry + rz * rz + rw * rw)
+        # q_R⁻¹ ⊗ q_B (Hamilton, xyzw), normalised, w ≥ 0
+        x = (rw * bx - rx * bw - ry * bz + rz * by) / nr
+        y = (rw * by + rx * bz - ry * bw - rz * bx) / nr
+        z = (rw * bz - rx * by + ry * bx - rz * bw) / nr
+        w = (rw * bw + rx * bx + ry * by + rz * bz) / nr
+        if w < 0:
+            x, y, z, w = -x, -y, -z, -w
+        self.q = np.array([x, y, z, w])
+        self.qv = self.q[:3]
+        self.qw = w
+        self.C = None
+        omega = np.asarray(s.omega, dtype=float)
+        wr, dwr = np.asarray(ref.omega, dtype=float), np.asarray(ref.omega_dot, dtype=float)
+        if any(_floats(wr)) or any(_floats(dwr)):
+            self.C = base_rotation(self.q)  # base → reference
+            self.omega_r = self.C.T @ wr
+            self.domega_r = self.C.T @ dwr
+            self.dw = omega - self.omega_r
+        else:
+            self.omega_r = self.domega_r = _ZERO3
+            self.dw = omega
+
+    def qv_dot(self) -> np.ndarray:
+        """q̇_v = ½ (q_w δω + q_v × δω)."""
+        return 0.5 * (self.qw * self.dw + _cross(self.qv, self.dw))
+
+    def mrp(self) -> np.ndarray:
+        """Modified Rodrigues parameters σ_BR = q_v / (1 + q_w), |σ| ≤ 1 (shadow set)."""
+        return self.qv / (1.0 + self.qw)
+
+    def angle(self) -> float:
+        """Eigen-axis error angle (rad)."""
+        return 2.0 * math.atan2(float(np.linalg.norm(self.qv)), self.qw)
+
+
+class _Clock:
+    """Time between successive calls (first call: 0)."""
+
+    def __init__(self):
+        self.prev: float | None = None
+
+    def dt(self, t: float) -> float:
+        d = 0.0 if self.prev is None else float(t) - self.prev
+        self.prev = float(t)
+        return d
+
+
+def _reference_feedforward(s: Sensed, e: TrackingError, J: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """ω × (J ω + h) + J (ω̇_r − ω × ω_r): cancels the gyroscopic and reference-motion terms."""
+    w = np.asarray(s.omega, dtype=float)
+    return _cross(w, J @ w + h) + J @ (e.domega_r - _cross(w, e.omega_r))
+
+
+class QuaternionPD:
+    """τ = −k_p θ_e − k_d δω − k_i ∫θ_e dt [+ ω×(Jω + h) + J(ω̇_r − ω×ω_r)].
+
+    θ_e = 2 q_v (rad; the rotation vector for small errors), so on a rigid axis of inertia I the
+    small-angle loop is I θ̈ + k_d θ̇ + k_p θ = 0: ω_n = √(k_p/I), ζ = k_d/(2√(k_p I)).
+    k_p in N m/rad, k_d in N m s/rad, k_i in N m/(rad s); scalar, per-axis (3,) or 3×3.
+    ``integral_limit`` (rad s) clips each component of ∫θ_e. ``feedforward`` needs a body model.
+    """
+
+    def __init__(self, kp, kd, ki=0.0, integral_limit: float = math.inf, feedforward: bool = False, body=None):
+        self.kp, self.kd, self.ki = _gain(kp), _gain(kd), _gain(ki)
+        self.integral_limit = float(integral_limit)
+        self.feedforward = feedforward
+        if feedforward and body is None:
+            raise ValueError("QuaternionPD: feedforward needs a body model (inertia)")
+        self.body = body
+        self.reset()
+
+    def reset(self) -> None:
+        self._clock = _Clock()
+        self.integral = np.zeros(3)
+
+    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        e = TrackingError(s, ref)
+        theta = 2.0 * e.qv
+        dt = self._clock.dt(s.t)
+        tau = -_apply(self.kp, theta) - _apply(self.kd, e.dw)
+        if np.any(self.ki != 0):
+            self.integral = np.clip(self.integral + theta * dt, -self.integral_limit, self.integral_limit)
+            tau -= _apply(self.ki, self.integral)
+        if self.feedforward:
+            J = self.body.inertia(s)
+            tau += _reference_feedforward(s, e, J, self.body.internal_momentum(s))
+        return tau
+
+
+class MrpFeedback:
+    """Basilisk's ``mrpFeedback`` (AVSLab/basilisk, src/fswAlgorithms/attControl/mrpFeedback), same
+    formula, inputs and quirks, so that its torque histories can be compared one to one:
+
+        L_r = −K σ − P δω − P K_i z + (v × (I ω + G_s h_s)) − I (ω × ω_r − ω̇_r) − L
+        h_s,i = J_s,i (ĝ_s,iᵀ ω + Ω_i),   v = ω_r + K_i z (control_law_type 0) or ω (type 1)
+        z = K ∫σ dt + I δω  (only when K_i > 0; each component of K∫σ clipped to integral_limit)
+
+    σ = σ_B/R (MRP, |σ| ≤ 1), δω = ω_B/R in B, ω_r = ω_R/N in B, L = known external torque; the
+    result is the net torque on the spacecraft (Basilisk's ``torqueRequestBody``), which the wheels
+    produce with G_s u_s = −L_r. K (N m), P (N m s), K_i (1/s; ≤ 0 disables the integral).
+    The integration step is the time since the previous call, zero on the first call and, as in
+    Basilisk, also zero on the call after one made at t = 0 (``priorTime == 0`` sentinel).
+    """
+
+    def __init__(self, K: float, P: float, inertia, Ki: float = -1.0, integral_limit: float = math.inf,
+                 control_law_type: int = 0, wheel_axes=None, wheel_spin=None, known_torque=(0.0, 0.0, 0.0)):
+        self.K, self.P, self.Ki = float(K), float(P), float(Ki)
+        self.integral_limit = float(integral_limit)
+        if control_law_type not in (0, 1):
+            raise ValueError("control_law_type is 0 (normal) or 1 (simple integral)")
+        self.law_type = control_law_type
+        self.body = RigidBody(inertia, wheel_axes, wheel_spin)
+        self.L = np.asarray(known_torque, dtype=float)
+        self._I = [[float(x) for x in row] for row in self.body.J]
+        self._L = [float(x) for x in self.L]
+        self._wheels = [(float(g[0]), float(g[1]), float(g[2]), float(js))
+                        for g, js in zip(self.body.G.T, self.body.Js)]
+        self._nw = len(self._wheels)
+        self.reset()
+
+    def reset(self) -> None:
+        self.prior_time = 0.0
+        self.int_sigma = [0.0, 0.0, 0.0]
+
+    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        # Scalar arithmetic on purpose: this law runs every plant step of the Basilisk bench.
+        e = TrackingError(s, ref)
+        qx, qy, qz, qw = _floats(e.q)
+        d = 1.0 + qw
+        sg = (qx / d, qy / d, qz / d)
+        w0, w1, w2 = _floats(s.omega)
+        dw0, dw1, dw2 = _floats(e.dw)
+        r0, r1, r2 = _floats(e.omega_r)
+        a0, a1, a2 = _floats(e.domega_r)
+        t = float(s.t)
+        dt = 0.0 if self.prior_time == 0.0 else t - self.prior_time
+        self.prior_time = t
+        I = self._I
+        K, P, Ki = self.K, self.P, self.Ki
+        z0 = z1 = z2 = 0.0
+        if Ki > 0:
+            lim = self.integral_limit
+            ints = self.int_sigma
+            for i in range(3):
+                v = ints[i] + K * dt * sg[i]
+                ints[i] = v if abs(v) <= lim else math.copysign(lim, v)
+            z0 = ints[0] + I[0][0] * dw0 + I[0][1] * dw1 + I[0][2] * dw2
+            z1 = ints[1] + I[1][0] * dw0 + I[1][1] * dw1 + I[1][2] * dw2
+            z2 = ints[2] + I[2][0] * dw0 + I[2][1] * dw1 + I[2][2] * dw2
+        PKi = P * Ki
+        L0 = K * sg[0] + P * dw0 + PKi * z0
+        L1 = K * sg[1] + P * dw1 + PKi * z1
+        L2 = K * sg[2] + P * dw2 + PKi * z2
+        H0 = I[0][0] * w0 + I[0][1] * w1 + I[0][2] * w2
+        H1 = I[1][0] * w0 + I[1][1] * w1 + I[1][2] * w2
+        H2 = I[2][0] * w0 + I[2][1] * w1 + I[2][2] * w2
+        if self._nw:
+            Om = _floats(s.wheel_speed)
+            for i, (g0, g1, g2, js) in enumerate(self._wheels):
+                hs = js * (g0 * w0 + g1 * w1 + g2 * w2 + Om[i])
+                H0 += hs * g0
+                H1 += hs * g1
+                H2 += hs * g2
+        if self.law_type == 0:
+            v0, v1, v2 = r0 + Ki * z0, r1 + Ki * z1, r2 + Ki * z2
+        else:
+            v0, v1, v2 = w0, w1, w2
+        L0 -= v1 * H2 - v2 * H1
+        L1 -= v2 * H0 - v0 * H2
+        L2 -= v0 * H1 - v1 * H0
+        c0, c1, c2 = w1 * r2 - w2 * r1 - a0, w2 * r0 - w0 * r2 - a1, w0 * r1 - w1 * r0 - a2
+        L0 += I[0][0] * c0 + I[0][1] * c1 + I[0][2] * c2 + self._L[0]
+        L1 += I[1][0] * c0 + I[1][1] * c1 + I[1][2] * c2 + self._L[1]
+        L2 += I[2][0] * c0 + I[2][1] * c1 + I[2][2] * c2 + self._L[2]
+        return np.array([-L0, -L1, -L2])
+
+
+class SlidingModeAttitude:
+    """First-order SMC of seed 000 (Caldera 2019, (3.9)–(3.17)) with self-consistent signs.
+
+    Surface s = δω + k q_v (the seed's s_s = ω_e + k q_e with q_e = q⁻¹ ∘ q_r, ω_e = ω_r − ω is
+    exactly −s). Law, from ṡ = −c tanh(μ s) on J ω̇ = τ − ω×(Jω + h):
+
+        τ = ω × (J ω + h) + J (ω̇_r − ω × ω_r − k q̇_v − c tanh(μ s))
+
+    (the printed (3.16)–(3.17) have the opposite signs on the k and c terms and diverge). With an
+    exact model each component obeys sinh(μ s(t)) = sinh(μ s(0)) e^{−c μ t}; on s = 0 the error
+    obeys q̇_v = −½ k q_w q_v (rate ≈ k/2 for small errors).
+    k (1/s), c (rad/s², multiplies J), μ (s/rad); ``smoothing='sign'`` gives the ideal law.
+    ``momentum=False`` leaves h out (the seed's ω × I_s ω only).
+    """
+
+    def __init__(self, k, c, mu, body, smoothing: str = "tanh", momentum: bool = True):
+        self.k, self.c, self.mu = _gain(k), _gain(c), _gain(mu)
+        if smoothing not in ("tanh", "sign"):
+            raise ValueError("smoothing is 'tanh' or 'sign'")
+        self.smoothing = smoothing
+        self.body = body
+        self.momentum = momentum
+
+    def reset(self) -> None:
+        pass
+
+    def surface(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        e = TrackingError(s, ref)
+        return e.dw + _apply(self.k, e.qv)
+
+    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        e = TrackingError(s, ref)
+        sig = e.dw + _apply(self.k, e.qv)
+        sw = np.tanh(_apply(self.mu, sig)) if self.smoothing == "tanh" else np.sign(sig)
+        J = self.body.inertia(s)
+        h = self.body.internal_momentum(s) if self.momentum else np.zeros(3)
+        w = np.asarray(s.omega, dtype=float)
+        acc = e.domega_r - _cross(w, e.omega_r) - _apply(self.k, e.qv_dot()) - _apply(self.c, sw)
+        return _cross(w, J @ w + h) + J @ acc
+
+
+class TwistingAttitude:
+    """Twisting SMC of seed 003 (Ruggiero 2020, (4.5)–(4.8), L538, (5.2)):
+
+        σ = λ q_v + δω,   u = −k₁ tanh(η σ) − k₂ tanh(η σ̇)   (or sign)
+
+    σ̇ is differentiated numerically as in the thesis: backward difference between control calls
+    (0 on the first call), optionally through a first-order filter of time constant
+    ``filter_time`` (s). |u_i| ≤ k₁ᵢ + k₂ᵢ always. k₁, k₂ (N m), λ (1/s), η (dimensionless).
+    For σ̇ = a + J⁻¹u with |a| ≤ A, each σ_i reaches 0 within |σ_i(0)| / ((k₁−k₂)/J_ii − A)
+    (ideal sign law, k₁ > k₂).
+    """
+
+    def __init__(self, k1, k2, lam, eta=1.0, smoothing: str = "tanh", filter_time: float = 0.0):
+        self.k1, self.k2, self.lam, self.eta = _gain(k1), _gain(k2), _gain(lam), _gain(eta)
+        if smoothing not in ("tanh", "sign"):
+            raise ValueError("smoothing is 'tanh' or 'sign'")
+        self.smoothing = smoothing
+        self.filter_time = float(filter_time)
+        self.reset()
+
+    def reset(self) -> None:
+        self._clock = _Clock()
+        self.prev_sigma: np.ndarray | None = None
+        self.sigma_dot = np.zeros(3)
+
+    def _sw(self, x: np.ndarray) -> np.ndarray:
+        return np.tanh(_apply(self.eta, x)) if self.smoothing == "tanh" else np.sign(x)
+
+    def surface(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        e = TrackingError(s, ref)
+        return _apply(self.lam, e.qv) + e.dw
+
+    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        sig = self.surface(s, ref)
+        dt = self._clock.dt(s.t)
+        if self.prev_sigma is not None and dt > 0:
+            raw = (sig - self.prev_sigma) / dt
+            a = dt / (self.filter_time + dt)
+            self.sigma_dot = self.sigma_dot + a * (raw - self.sigma_dot)
+        self.prev_sigma = sig
+        return -_apply(self.k1, self._sw(sig)) - _apply(self.k2, self._sw(self.sigma_dot))
+
+
+class BacksteppingAttitude:
+    """Backstepping of seed 003 (Ruggiero 2020, (4.15)–(4.28)), with ω̃ = ω − ω_c:
+
+        ω_c = −K₁ q_v + ω_r,   γ = (J ω_c) × ω_c − J ω̇_c − J̇ ω_c,
+        u = −K₂ ω̃ − q_v − T̂_dis − γ + ω_c × (J ω̃) + ½ J̇ ω̃,
+
+    ω̇_c = −K₁ q̇_v + ω̇_r − ω × ω_r analytically. On d(Jω)/dt = u + T_dis − ω×Jω with T̂_dis = T_dis,
+    V₂ = q_vᵀq_v + (1 − q_w)² + ½ ω̃ᵀ J ω̃ has V̇₂ = −q_vᵀK₁q_v − ω̃ᵀK₂ω̃ (4.28).
+    T̂_dis = −ω × h (``disturbance='gyroscopic'``, h from the body model) or 0 (``'none'``).
+    K₁ (1/s), K₂ (N m s/rad); scalar, per-axis or 3×3 (symmetric positive definite).
+    """
+
+    def __init__(self, K1, K2, body, disturbance: str = "gyroscopic"):
+        self.K1, self.K2 = _gain(K1), _gain(K2)
+        if disturbance not in ("gyroscopic", "none"):
+            raise ValueError("disturbance is 'gyroscopic' or 'none'")
+        self.disturbance = disturbance
+        self.body = body
+
+    def reset(self) -> None:
+        pass
+
+    def _parts(self, s: Sensed, ref: AttitudeRef):
+        e = TrackingError(s, ref)
+        w = np.asarray(s.omega, dtype=float)
+        wc = -_apply(self.K1, e.qv) + e.omega_r
+        return e, w, wc, w - wc
+
+    def lyapunov(self, s: Sensed, ref: AttitudeRef) -> float:
+        """V₂ = q_vᵀq_v + (1 − q_w)² + ½ ω̃ᵀ J ω̃."""
+        e, _, _, wt = self._parts(s, ref)
+        J = self.body.inertia(s)
+        return float(e.qv @ e.qv + (1.0 - e.qw) ** 2 + 0.5 * wt @ J @ wt)
+
+    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        e, w, wc, wt = self._parts(s, ref)
+        J = self.body.inertia(s)
+        Jd = self.body.inertia_rate(s)
+        wc_dot = -_apply(self.K1, e.qv_dot()) + e.domega_r - _cross(w, e.omega_r)
+        gamma = _cross(J @ wc, wc) - J @ wc_dot - Jd @ wc
+        T_dis = -_cross(w, self.body.internal_momentum(s)) if self.disturbance == "gyroscopic" else np.zeros(3)
+        return -_apply(self.K2, wt) - e.qv - T_dis - gamma + _cross(wc, J @ wt) + 0.5 * Jd @ wt

@@ -1,0 +1,117 @@
+"""Simulation metrics, per phase and overall (SI units; angles in rad, with deg copies)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Trace:
+    """Samples at the controller rate (appended by the engine)."""
+
+    t: list[float] = field(default_factory=list)
+    phase: list[int] = field(default_factory=list)
+    att_err: list[float] = field(default_factory=list)  # rad
+    joint_err: list[np.ndarray] = field(default_factory=list)  # rad or m
+    ee_err: list[float] = field(default_factory=list)  # m (nan when no EE target)
+    wheel_speed: list[np.ndarray] = field(default_factory=list)
+    wheel_torque: list[np.ndarray] = field(default_factory=list)
+    joint_torque: list[np.ndarray] = field(default_factory=list)
+    saturated: list[bool] = field(default_factory=list)
+    modal_peak: list[float] = field(default_factory=list)
+    momentum: list[np.ndarray] = field(default_factory=list)  # [p (3), k about origin (3)]
+    energy: list[float] = field(default_factory=list)
+    base_reaction: list[np.ndarray] = field(default_factory=list)  # [f; n] base frame, nan when the base is not held
+    base_torque: list[np.ndarray] = field(default_factory=list)  # attitude-law torque on the base (N m, base frame)
+    segment: list[int] = field(default_factory=list)  # bumps when a payload is attached/released or the base is held
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        def stack(x, width):
+            return np.array(x) if x and np.size(x[0]) else np.zeros((len(self.t), width))
+        return {
+            "t": np.array(self.t), "phase": np.array(self.phase, dtype=int), "att_err": np.array(self.att_err),
+            "joint_err": stack(self.joint_err, 0), "ee_err": np.array(self.ee_err),
+            "wheel_speed": stack(self.wheel_speed, 0), "wheel_torque": stack(self.wheel_torque, 0),
+            "joint_torque": stack(self.joint_torque, 0), "saturated": np.array(self.saturated, dtype=bool),
+            "modal_peak": np.array(self.modal_peak), "momentum": np.array(self.momentum), "energy": np.array(self.energy),
+            "base_reaction": np.array(self.base_reaction) if self.base_reaction else np.zeros((len(self.t), 6)),
+            "segment": np.array(self.segment, dtype=int),
+            "base_torque": np.array(self.base_torque) if self.base_torque else np.zeros((len(self.t), 3)),
+        }
+
+
+def settling_time(t: np.ndarray, err: np.ndarray, band: float) -> float | None:
+    """First time after which |err| stays within band until the end (None if it never settles)."""
+    outside = np.nonzero(np.abs(err) > band)[0]
+    if outside.size == 0:
+        return float(t[0]) if t.size else None
+    last = outside[-1]
+    if last == err.size - 1:
+        return None
+    return float(t[last + 1])
+
+
+def _stats(x: np.ndarray) -> dict[str, float]:
+    if x.size == 0 or np.all(np.isnan(x)):
+        return {"max": None, "rms": None, "final": None}
+    return {"max": float(np.nanmax(np.abs(x))), "rms": float(math.sqrt(np.nanmean(x**2))), "final": float(x[~np.isnan(x)][-1])}
+
+
+def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_control: float) -> dict:
+    """Metrics of the samples selected by mask."""
+    t = a["t"][mask]
+    out: dict = {"start_s": float(t[0]) if t.size else None, "end_s": float(t[-1]) if t.size else None}
+    att = _stats(a["att_err"][mask])
+    out["attitude_error_rad"] = att
+    out["attitude_error_deg"] = {k: (None if v is None else math.degrees(v)) for k, v in att.items()}
+    st = settling_time(t, a["att_err"][mask], band) if t.size else None
+    out["settling_time_s"] = None if st is None else st - float(t[0])
+    je = a["joint_err"][mask]
+    out["joint_error_max"] = float(np.max(np.abs(je))) if je.size else None
+    out["joint_error_rms"] = float(np.sqrt(np.mean(je**2))) if je.size else None
+    out["end_effector_error_m"] = _stats(a["ee_err"][mask])
+    for key, label in (("wheel_torque", "wheel_torque_peak_Nm"), ("wheel_speed", "wheel_speed_peak_rad_s"),
+                       ("joint_torque", "joint_torque_peak")):
+        x = a[key][mask]
+        out[label] = float(np.max(np.abs(x))) if x.size else None
+    bt = a["base_torque"][mask]
+    out["attitude_torque_peak_Nm"] = float(np.max(np.abs(bt))) if bt.size else None
+    out["saturation_time_s"] = float(np.count_nonzero(a["saturated"][mask]) * dt_control)
+    br = a["base_reaction"][mask]
+    if br.size and np.any(np.isfinite(br)):
+        out["base_reaction_force_peak_N"] = float(np.nanmax(np.linalg.norm(br[:, :3], axis=1)))
+        out["base_reaction_torque_peak_Nm"] = float(np.nanmax(np.linalg.norm(br[:, 3:], axis=1)))
+    mp = a["modal_peak"][mask]
+    out["modal_amplitude_peak"] = float(np.max(mp)) if mp.size else None
+    return out
+
+
+def conservation(a: dict[str, np.ndarray], wheel_spin_inertia: np.ndarray | None = None) -> dict:
+    """Drift of world momentum (linear; angular about the world origin) and energy change over the run.
+
+    Relative drifts divide by the momentum at t = 0, or, when the system starts at rest, by the
+    largest momentum the wheels exchanged with the base (Σ I_s |ω_w|): the internal momentum scale."""
+    h = a["momentum"]
+    if h.size == 0:
+        return {}
+    # momentum is only conserved between events that exchange it with the outside (payload
+    # attached/released, base held by a support): drift is measured within each such segment
+    seg = a["segment"] if a["segment"].size == len(h) else np.zeros(len(h), dtype=int)
+    dh = np.zeros(6)
+    for k in np.unique(seg):
+        hk = h[seg == k]
+        dh = np.maximum(dh, np.max(np.abs(hk - hk[0]), axis=0))
+    p0, k0 = float(np.linalg.norm(h[0, :3])), float(np.linalg.norm(h[0, 3:]))
+    k_int = float(np.max(np.abs(a["wheel_speed"]) @ wheel_spin_inertia)) if (
+        wheel_spin_inertia is not None and wheel_spin_inertia.size and a["wheel_speed"].size) else 0.0
+    scale_k = max(k0, k_int)
+    e = a["energy"]
+    return {
+        "linear_momentum_drift_abs": float(np.max(dh[:3])), "angular_momentum_drift_abs": float(np.max(dh[3:])),
+        "linear_momentum_drift_rel": float(np.max(dh[:3]) / p0) if p0 > 1e-12 else None,
+        "angular_momentum_drift_rel": float(np.max(dh[3:]) / scale_k) if scale_k > 1e-12 else None,
+        "energy_change_J": float(e[-1] - e[0]) if e.size else None,
+    }

@@ -1,0 +1,68 @@
+"""Phase references: attitude (step or quintic eigen-axis slew) and joint waypoints (quintic)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_matrix
+from sms_cli.sim.attitude_math import quat_exp, quat_log, quat_mul, quat_conj
+from sms_cli.sim.interfaces import ArmRef, AttitudeRef
+
+
+def quintic(s: float) -> tuple[float, float, float]:
+    """Rest-to-rest quintic blend on s ∈ [0, 1]: (p, dp/ds, d²p/ds²)."""
+    s = min(max(s, 0.0), 1.0)
+    return (10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4, 60 * s - 180 * s**2 + 120 * s**3)
+
+
+class AttitudeProfile:
+    """Attitude reference of a phase, starting from the previous reference ``q_start``."""
+
+    def __init__(self, q_start: np.ndarray, rpy_target, profile: str, slew_time: float | None):
+        self.q_start = q_start
+        if rpy_target is None:
+            self.q_target, self.rotvec, self.T = q_start, np.zeros(3), None
+            return
+        self.q_target = quaternion_xyzw_from_matrix(euler_zyx_to_matrix(*rpy_target))
+        self.rotvec = quat_log(quat_mul(quat_conj(q_start), self.q_target))  # body-frame eigen-axis rotation
+        self.T = slew_time if profile == "smooth" else None
+
+    def at(self, tau: float) -> AttitudeRef:
+        """Reference at time tau from the phase start."""
+        if self.T is None:
+            return AttitudeRef(self.q_target)
+        p, dp, ddp = quintic(tau / self.T)
+        q = quat_mul(self.q_start, quat_exp(p * self.rotvec))
+        return AttitudeRef(q, dp / self.T * self.rotvec, ddp / self.T**2 * self.rotvec)
+
+
+class JointProfile:
+    """Joint reference through waypoints (quintic rest-to-rest segments), from ``q_start``."""
+
+    def __init__(self, q_start: np.ndarray, names: list[str], waypoints, profile: str = "quintic"):
+        self.step = profile == "step"
+        self.times = [0.0]
+        self.points = [np.array(q_start, float)]
+        for w in waypoints:
+            nxt = self.points[-1].copy()
+            for name, value in w.joints.items():
+                nxt[names.index(name)] = value
+            self.times.append(w.at)
+            self.points.append(nxt)
+
+    @property
+    def final(self) -> np.ndarray:
+        return self.points[-1]
+
+    def at(self, tau: float) -> ArmRef:
+        n = self.points[0].size
+        for k in range(1, len(self.times)):
+            t0, t1 = self.times[k - 1], self.times[k]
+            if tau < t1:
+                if self.step:
+                    return ArmRef(self.points[k - 1].copy(), np.zeros(n), np.zeros(n))
+                p, dp, ddp = quintic((tau - t0) / (t1 - t0))
+                d = self.points[k] - self.points[k - 1]
+                T = t1 - t0
+                return ArmRef(self.points[k - 1] + p * d, dp / T * d, ddp / T**2 * d)
+        return ArmRef(self.points[-1].copy(), np.zeros(n), np.zeros(n))

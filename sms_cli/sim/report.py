@@ -1,0 +1,37 @@
+"""Plain-text summary of a simulation (what ``sms simulate`` prints)."""
+
+from __future__ import annotations
+
+
+def _f(x, fmt: str = ".4g", unit: str = "") -> str:
+    return "—" if x is None else f"{x:{fmt}}{unit}"
+
+
+def format_simulation(sec: dict) -> str:
+    """Per-phase table and overall metrics."""
+    lines = [f"status {sec['status']}" + (f" ({sec['divergence']})" if sec.get("divergence") else "")
+             + f"  t_end {sec['t_end_s']:.3f} s, {sec['steps']} plant steps"]
+    tm = sec.get("timing", {})
+    if tm:
+        lines.append(f"timing {tm['wall_s']:.2f} s wall, {tm['us_per_step']:.1f} µs/step, "
+                     f"{_f(tm.get('real_time_factor'), '.1f')}× real time")
+    lines.append(f"{'phase':<22}{'kind':<13}{'dur [s]':>9}{'att err max':>13}{'final':>10}{'settle [s]':>11}"
+                 f"{'joint err':>11}{'att τ pk':>10}{'wheel τ pk':>11}{'joint τ pk':>11}{'sat [s]':>9}")
+    for p in sec["phases"]:
+        a = p.get("attitude_error_deg", {})
+        lines.append(f"{p['name'][:21]:<22}{p['kind']:<13}{p['duration_s']:>9.2f}{_f(a.get('max'), '.4g', '°'):>13}"
+                     f"{_f(a.get('final'), '.3g', '°'):>10}{_f(p.get('settling_time_s'), '.1f'):>11}"
+                     f"{_f(p.get('joint_error_max'), '.3g'):>11}{_f(p.get('attitude_torque_peak_Nm'), '.3g'):>10}"
+                     f"{_f(p.get('wheel_torque_peak_Nm'), '.3g'):>11}"
+                     f"{_f(p.get('joint_torque_peak'), '.3g'):>11}{_f(p.get('saturation_time_s'), '.1f'):>9}")
+    for p in sec["phases"]:
+        if p.get("base_reaction_torque_peak_Nm") is not None:
+            lines.append(f"  {p['name']}: base held; reaction peaks {p['base_reaction_force_peak_N']:.4g} N, "
+                         f"{p['base_reaction_torque_peak_Nm']:.4g} N m")
+    c = sec.get("conservation", {})
+    if c:
+        lines.append(f"momentum drift linear {_f(c.get('linear_momentum_drift_abs'), '.2e')} N s"
+                     f" (rel {_f(c.get('linear_momentum_drift_rel'), '.2e')}), angular {_f(c.get('angular_momentum_drift_abs'), '.2e')} N m s"
+                     f" (rel {_f(c.get('angular_momentum_drift_rel'), '.2e')}); energy change {_f(c.get('energy_change_J'), '.4g')} J")
+    lines.append(f"recording {sec['files']['mcap']}")
+    return "\n".join(lines)

@@ -1,0 +1,146 @@
+"""The mission's ``simulation:`` section: time steps, controllers, actuators, sensors,
+disturbances and the phase sequence."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from sms_cli.mission.base import Position3, Rotation3, StrictModel, Vector3
+from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Force, Frequency, Time, Torque
+from sms_cli.sim.laws.schema import ArmLawSpec, AttitudeLawSpec, ResolvedRateSpec
+
+BaseMode = Literal["free-floating", "rotation-free-floating", "free-flying", "fixed"]
+# free-floating: nothing controls the base; rotation-free-floating: attitude by the attitude law
+# (wheels or thrusters), translation free; free-flying: attitude law through thrusters;
+# fixed: the base is held perfectly (seed 001's "base perfectly controlled"): its acceleration is
+# zero and the wrench needed to hold it is reported as /base/reaction.
+
+
+class Waypoint(StrictModel):
+    """Joint positions to reach at a time from the phase start (quintic interpolation, rest to rest)."""
+
+    at: Time = Field(description="time from the phase start (s)")
+    joints: dict[str, Angle] = Field(description="joint positions by name (rad or m); others keep their value")
+
+
+class EndEffectorTarget(StrictModel):
+    """End-effector target in the inertial frame: a fixed point, or a point moving at constant velocity."""
+
+    position: Position3
+    velocity: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="m/s, inertial")
+    relative_to_start: bool = Field(False, description="position is an offset from the EE position at the phase start")
+
+
+class PhaseSpec(StrictModel):
+    """One phase of the mission. It ends after ``duration``; with ``until_settled`` it may end
+    earlier, once the attitude error has stayed below the tolerance for ``settle_time``."""
+
+    name: str
+    kind: Literal["slew", "deploy", "grasp", "move_payload", "release", "track", "hold"] = "hold"
+    duration: Time = Field(gt=0)
+    base_mode: BaseMode = "rotation-free-floating"
+    attitude: Rotation3 | None = Field(None, description="target base attitude, roll-pitch-yaw (Z-Y-X), inertial")
+    attitude_profile: Literal["step", "smooth"] = Field(
+        "step", description="step: target at once; smooth: quintic eigen-axis slew over 'slew_time'")
+    slew_time: Time | None = None
+    waypoints: list[Waypoint] = Field(default_factory=list)
+    joint_profile: Literal["quintic", "step"] = Field(
+        "quintic", description="quintic: smooth rest-to-rest segments ending at each waypoint; "
+                               "step: the reference jumps to each waypoint at its time (seed 000 style)")
+    end_effector: EndEffectorTarget | None = None
+    attach: list[str] = Field(default_factory=list, description="payloads attached at the phase start")
+    detach: list[str] = Field(default_factory=list, description="payloads released at the phase start")
+    until_settled: Angle | None = Field(None, description="end early when the attitude error stays below this")
+    settle_time: Time = 5.0
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.waypoints and self.end_effector is not None:
+            raise ValueError("a phase has either joint waypoints or an end_effector target, not both")
+        times = [w.at for w in self.waypoints]
+        if times != sorted(times) or any(t <= 0 for t in times):
+            raise ValueError("waypoint times must be positive and increasing")
+        if times and times[-1] > self.duration + 1e-9:
+            raise ValueError(f"last waypoint at {times[-1]:g} s is after the phase end ({self.duration:g} s)")
+        if self.attitude_profile == "smooth" and self.slew_time is None:
+            raise ValueError("a smooth attitude profile needs slew_time")
+        return self
+
+
+class AllocationSpec(StrictModel):
+    """Wheel torque allocation for a desired base torque: minimum-norm pseudo-inverse, plus optional
+    null-space momentum management driving the wheel speeds toward ``target_speed``."""
+
+    method: Literal["pinv"] = "pinv"
+    null_space_gain: float = Field(0.0, ge=0, description="1/s; 0 disables momentum management")
+    target_speed: AngularRate = 0.0
+
+
+class WheelFriction(StrictModel):
+    """Wheel bearing friction: τ_f = −coulomb·sign(ω) − viscous·ω (relative speed)."""
+
+    coulomb: Torque = 0.0
+    viscous: float = Field(0.0, ge=0, description="N m s/rad")
+
+
+class NoiseSpec(StrictModel):
+    """White noise (standard deviation per sample) and constant bias of one sensor."""
+
+    noise: float = Field(0.0, ge=0)
+    bias: Vector3 | float = 0.0
+
+
+class SensorsSpec(StrictModel):
+    """Sensors with seeded noise: gyro (rad/s), attitude (rad, small rotation), joints (rad or m)."""
+
+    seed: int = 0
+    gyro: NoiseSpec = Field(default_factory=NoiseSpec)
+    attitude: NoiseSpec = Field(default_factory=NoiseSpec)
+    joints: NoiseSpec = Field(default_factory=NoiseSpec)
+
+
+class DisturbanceSpec(StrictModel):
+    """External wrench on the base: constant, or a pulse from ``start`` for ``duration``."""
+
+    kind: Literal["constant", "pulse"] = "pulse"
+    frame: Literal["base", "inertial"] = "base"
+    force: list[Force] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    torque: list[Torque] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    start: Time = 0.0
+    duration: Time = 0.0
+
+
+class DivergenceSpec(StrictModel):
+    """When the simulation counts as diverged (exit code 3, recording kept)."""
+
+    max_rate: AngularRate = Field(1e4, description="any generalized velocity above this")
+    max_modal_amplitude: float = 1e3
+
+
+class SimulationSpec(StrictModel):
+    """Nonlinear simulation of the mission (``sms simulate``)."""
+
+    dt: Time = Field(0.01, gt=0, description="plant step (s)")
+    control_rate: Frequency = Field(10.0, gt=0, description="controller rate (Hz); ZOH between updates")
+    record_rate: Frequency | None = Field(20.0, description="MCAP sample rate (Hz); null records every plant step")
+    attitude: AttitudeLawSpec | None = Field(None, description="base attitude law")
+    attitude_actuator: Literal["wheels", "thrusters"] = "wheels"
+    arm: ArmLawSpec | None = Field(None, description="manipulator joint law")
+    resolved_rate: ResolvedRateSpec | None = Field(None, description="end-effector tracking (phases with end_effector)")
+    allocation: AllocationSpec = Field(default_factory=AllocationSpec)
+    wheel_friction: WheelFriction = Field(default_factory=WheelFriction)
+    sensors: SensorsSpec = Field(default_factory=SensorsSpec)
+    disturbances: list[DisturbanceSpec] = Field(default_factory=list)
+    divergence: DivergenceSpec = Field(default_factory=DivergenceSpec)
+    settle_tolerance: Angle = Field(0.01, description="attitude error band for settling time (rad)")
+    phases: list[PhaseSpec] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _check(self):
+        period = 1.0 / self.control_rate
+        ratio = period / self.dt
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ValueError(f"the control period ({period:g} s) must be a whole number of plant steps (dt = {self.dt:g} s)")
+        return self
