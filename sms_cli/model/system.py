@@ -176,7 +176,10 @@ class SystemModel:
                 X = self.model.frames[a.frame_id].placement.inverse().action  # base twist -> junction twist
                 B[a.modes] = a.L @ X
             self._base_B = B
+            self._base_Bt = np.ascontiguousarray(B.T)
             self._base_BtB = B.T @ B
+            self._neg_omega2 = -(self._omega**2)
+            self._neg_2zo = -2.0 * self._zeta * self._omega
 
     # ------------------------------------------------------------------ inertia
     @property
@@ -305,25 +308,26 @@ class SystemModel:
         return (self.mass_matrix(q)[:6] @ x_dot + self.bias_forces(q, v, etadot)[:6] - self.internal_forces(q, v, eta, etadot)[:6])
 
     def _forward_dynamics_base_modes(self, q, v, eta, etadot, tau):
-        """Schur complement on the modal block: (H − BᵀB) v̇ = τ − h − g − Bᵀ r_η, η̈ = r_η − B v̇."""
-        B = self._base_B
-        H = pin.crba(self.model, self.data, q).copy()  # dposv reads the upper triangle only
+        """Schur complement on the modal block: (H − BᵀB) v̇ = τ − h − g − Bᵀ r_η, η̈ = r_η − B v̇.
+        Hot path of the simulator (4 calls per plant step): scalars are Python floats."""
+        m, d = self.model, self.data
+        H = pin.crba(m, d, q).copy()  # dposv reads the upper triangle only
         H[:6, :6] -= self._base_BtB
-        rhs = tau - pin.nonLinearEffects(self.model, self.data, q, v)
+        rhs = tau - pin.nonLinearEffects(m, d, q, v)
         if self.springs:
             rhs[self._spring_v] -= self._spring_k * (q[self._spring_q] - self._spring_rest) + self._spring_c * v[self._spring_v]
-        fx, fy, fz, nx, ny, nz = B.T @ etadot  # modal momentum as a base-frame wrench [f; n]
-        vx, vy, vz, wx, wy, wz = v[:6]
-        rhs[:6] -= (wy * fz - wz * fy, wz * fx - wx * fz, wx * fy - wy * fx,  # v_b ×* P = [ω×f; v×f + ω×n]
-                    vy * fz - vz * fy + wy * nz - wz * ny,
-                    vz * fx - vx * fz + wz * nx - wx * nz,
-                    vx * fy - vy * fx + wx * ny - wy * nx)
-        r_eta = -(self._omega**2) * eta - 2.0 * self._zeta * self._omega * etadot
-        rhs[:6] -= B.T @ r_eta
+        fx, fy, fz, nx, ny, nz = (self._base_Bt @ etadot).tolist()  # modal momentum as a base-frame wrench [f; n]
+        vx, vy, vz, wx, wy, wz = v[:6].tolist()
+        r_eta = self._neg_omega2 * eta + self._neg_2zo * etadot
+        rhs[:6] -= self._base_Bt @ r_eta + np.array((
+            wy * fz - wz * fy, wz * fx - wx * fz, wx * fy - wy * fx,  # v_b ×* P = [ω×f; v×f + ω×n]
+            vy * fz - vz * fy + wy * nz - wz * ny,
+            vz * fx - vx * fz + wz * nx - wx * nz,
+            vx * fy - vy * fx + wx * ny - wy * nx))
         _, vdot, info = _dposv(H, rhs, lower=0, overwrite_a=1, overwrite_b=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"mass matrix with modes is not positive definite (LAPACK dposv info {info})")
-        return vdot, r_eta - B @ vdot[:6]
+        return vdot, r_eta - self._base_B @ vdot[:6]
 
     # ------------------------------------------------------------------ momentum and energy
     def momentum(self, q: np.ndarray, v: np.ndarray, etadot: np.ndarray | None = None,

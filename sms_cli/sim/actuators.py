@@ -60,6 +60,16 @@ class WheelArray:
         out[mask] = np.sign(tau[mask]) * cap[mask]
         return out
 
+    @property
+    def has_friction(self) -> bool:
+        return self.friction.coulomb != 0 or self.friction.viscous != 0
+
+    def may_reach_limit(self, speed: np.ndarray, tau: np.ndarray, horizon: float) -> bool:
+        """Whether a wheel could reach its speed limit within ``horizon`` seconds under ``tau``
+        (with a factor 2 of margin); if not, the speed limiter can be skipped for that period."""
+        reach = np.abs(speed) + 2.0 * np.abs(tau) / self.effective_inertia * horizon
+        return bool(np.any(reach >= self.max_speed))
+
     def friction_torque(self, speed: np.ndarray) -> np.ndarray:
         f = self.friction
         if f.coulomb == 0 and f.viscous == 0:

@@ -121,8 +121,6 @@ class Simulation:
     # ------------------------------------------------------------------ recording
     def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec) -> None:
         rec = self.rec
-        if rec is None or not rec.due(t):
-            return
         m, d = self.sm.model, self.sm.data
         pin.framesForwardKinematics(m, d, s.q)
         poses = np.empty((len(self.link_fids), 7))
@@ -206,19 +204,31 @@ class Simulation:
                     self._trace(trace, t, ip, err_vec, arm_ref, s, tau_w, tau_m, sat, ee_err)
                     if self.wheels.n and (tick % 10 == 0):
                         self.wheels.update_effective_inertia(s.q)
+                    tau_tick = np.zeros(sm.nv)
+                    tau_tick[:6] = base_wrench
+                    if sm.arm:
+                        tau_tick[sm.idx.arm] = tau_m
+                    wheels_live = self.wheels.n and (self.wheels.may_reach_limit(s.v[sm.idx.wheels], tau_w, self.n_sub * self.dt)
+                                                      or self.wheels.has_friction)
+                    if self.wheels.n and not wheels_live:
+                        tau_tick[sm.idx.wheels] = tau_w
+                    fd = self.sm.forward_dynamics_fixed_base if fixed else self.sm.forward_dynamics
+                    rec_due = self.rec.due if self.rec is not None else None
                     for _ in range(self.n_sub):
-                        tau = self._tau
-                        tau[:] = 0.0
-                        tau[:6] = base_wrench + (self._disturbance(t, s.q) if spec.disturbances else 0.0)
-                        if self.wheels.n:
-                            ws = s.v[sm.idx.wheels]
-                            tau[sm.idx.wheels] = self.wheels.speed_limited(tau_w, ws, self.dt) + self.wheels.friction_torque(ws)
-                        if sm.arm:
-                            tau[sm.idx.arm] = tau_m
-                        s = rkmk4_step(sm.model, s, self.dt, self._accel(tau.copy(), fixed))
+                        if wheels_live or spec.disturbances:
+                            tau = tau_tick.copy()
+                            if spec.disturbances:
+                                tau[:6] += self._disturbance(t, s.q)
+                            if wheels_live:
+                                ws = s.v[sm.idx.wheels]
+                                tau[sm.idx.wheels] = self.wheels.speed_limited(tau_w, ws, self.dt) + self.wheels.friction_torque(ws)
+                        else:
+                            tau = tau_tick
+                        s = rkmk4_step(sm.model, s, self.dt, lambda q, v, e, ed, _tau=tau: fd(q, v, e, ed, _tau))
                         t += self.dt
                         steps += 1
-                        self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]))
+                        if rec_due is not None and rec_due(t):
+                            self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]))
                     self._check(s)
                     self.progress.update(t)
                     if phase.until_settled is not None:
