@@ -54,7 +54,7 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
         axes[0].set(ylabel="wheel speed (rpm)", title="Reaction wheels")
         axes[1].plot(t, trace["wheel_torque"], lw=1)
         axes[1].set(xlabel="time (s)", ylabel="motor torque (N m)")
-        axes[0].legend(names, fontsize=7, ncol=4)
+        axes[0].legend(names, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         for a in axes:
             a.grid(alpha=0.3)
             phases(a)
@@ -67,7 +67,7 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
         axes[0].set(ylabel="tracking error (rad or m)", title="Manipulator joints")
         axes[1].plot(t, trace["joint_torque"], lw=1)
         axes[1].set(xlabel="time (s)", ylabel="joint torque (N m or N)")
-        axes[0].legend(names, fontsize=7, ncol=4)
+        axes[0].legend(names, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         for a in axes:
             a.grid(alpha=0.3)
             phases(a)
