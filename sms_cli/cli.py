@@ -167,6 +167,31 @@ def analyze_cmd(
     run_guarded(body)
 
 
+@app.command("synthesize")
+def synthesize_cmd(
+    mission: MissionArg,
+    out: OutOpt = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print the synthesis section as JSON")] = False,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the pole map PNG")] = True,
+) -> None:
+    """Controller/observer gains (seed 004 LMI, PD, LQR, SMC), verified after the solve; writes gains.yaml."""
+
+    def body() -> int:
+        from sms_cli.mission.load import load_mission
+        from sms_cli.synthesis.stage import format_synthesis, run_synthesis
+
+        section = run_synthesis(load_mission(mission), default_out(mission, out), plots=plots)
+        if as_json:
+            from sms_cli.results import _jsonable
+
+            typer.echo(json.dumps(_jsonable(section), indent=2))
+        else:
+            typer.echo(format_synthesis(section))
+        return 0
+
+    run_guarded(body)
+
+
 @app.command("simulate")
 def simulate_cmd(
     mission: MissionArg,

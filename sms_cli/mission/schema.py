@@ -16,6 +16,7 @@ from sms_cli.mission.system import (
 from sms_cli.analysis.schema import AnalysisSpec
 from sms_cli.orbit.schema import BudgetSpec
 from sms_cli.sim.schema import SimulationSpec
+from sms_cli.synthesis.schema import SynthesisSpec
 
 
 class Mission(StrictModel):
@@ -39,3 +40,5 @@ class Mission(StrictModel):
         None, description="workspace sampling, kinematic indices, design variants and modal analysis (sms analyze)")
     simulation: SimulationSpec | None = Field(
         None, description="nonlinear simulation (sms simulate): steps, controllers, actuators, sensors, phases")
+    synthesis: SynthesisSpec | None = Field(
+        None, description="controller/observer gain synthesis (sms synthesize): seed 004 LMI, PD, LQR or SMC")

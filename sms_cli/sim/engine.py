@@ -64,7 +64,8 @@ class Progress:
 class Simulation:
     """One mission simulation on a compiled SystemModel."""
 
-    def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder=None, progress: bool | None = None):
+    def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder=None, progress: bool | None = None,
+                 results_dir=None, mission_dir=None):
         from sms_cli.sim.laws import build_arm_law, build_attitude_law, build_resolved_rate
 
         self.sm = sm
@@ -75,6 +76,11 @@ class Simulation:
         self.att_law = build_attitude_law(spec.attitude, sm) if spec.attitude else None
         self.arm_law = build_arm_law(spec.arm, sm) if spec.arm else None
         self.rr = build_resolved_rate(spec.resolved_rate, sm) if spec.resolved_rate else None
+        self.ndi = None
+        if spec.ndi is not None:
+            from sms_cli.sim.laws.ndi import build_ndi
+
+            self.ndi = build_ndi(spec.ndi, sm, 1.0 / spec.control_rate, results_dir, mission_dir)
         self.dt = spec.dt
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.total_time = sum(p.duration for p in spec.phases)
@@ -284,6 +290,12 @@ class Simulation:
                 tau_w, flags = self.wheels.clip_torque(self.wheels.allocate(T, s.wheel_speed))
                 sat = bool(np.any(flags))
         tau_m = np.zeros(len(sm.arm))
+        if self.ndi is not None and phase.base_mode not in ("free-floating", "fixed"):
+            tau_a = self.ndi.torques(s, att_ref, arm_ref)
+            tau_w, fw = self.wheels.clip_torque(tau_a[: self.wheels.n])
+            tau_m, fm = clip_joint_torque(sm, tau_a[self.wheels.n:])
+            self.ndi.observe(np.concatenate([tau_w, tau_m]))
+            return tau_w, tau_m, base_wrench, bool(self.ndi.saturated or np.any(fw) or np.any(fm))
         if self.arm_law is not None and sm.arm:
             tau_m, flags = clip_joint_torque(sm, np.asarray(self.arm_law.torque(s, arm_ref), float))
             sat = sat or bool(np.any(flags))

@@ -119,6 +119,18 @@ class DivergenceSpec(StrictModel):
     max_modal_amplitude: float = 1e3
 
 
+class NdiSpec(StrictModel):
+    """Seed 004 NDI of the wheels + arm with the flexible/base-state observer (replaces the attitude and
+    arm laws). Gains from ``gains.yaml`` (written by ``sms synthesize``, found in the results folder or
+    at a path relative to the mission file) or given here."""
+
+    gains: str | None = Field(None, description="gains.yaml path (default: <results>/gains.yaml when kp/kv/L are absent)")
+    kp: list[float] | float | None = Field(None, description="1/s² per actuator (wheels, then arm)")
+    kv: list[float] | float | None = Field(None, description="1/s per actuator")
+    L: list[list[float]] | None = Field(None, description="observer gain (2 n_f + 3) × 3 for x = [f; ω0; ḟ], y = ω0")
+    attitude_gain: float = Field(0.05, gt=0, description="k_att (1/s): base rate command ω_des = ω_ref − k_att θ_e")
+
+
 class SimulationSpec(StrictModel):
     """Nonlinear simulation of the mission (``sms simulate``)."""
 
@@ -129,6 +141,7 @@ class SimulationSpec(StrictModel):
     attitude_actuator: Literal["wheels", "thrusters"] = "wheels"
     arm: ArmLawSpec | None = Field(None, description="manipulator joint law")
     resolved_rate: ResolvedRateSpec | None = Field(None, description="end-effector tracking (phases with end_effector)")
+    ndi: NdiSpec | None = Field(None, description="seed 004 NDI + observer on wheels and arm (instead of attitude/arm laws)")
     allocation: AllocationSpec = Field(default_factory=AllocationSpec)
     wheel_friction: WheelFriction = Field(default_factory=WheelFriction)
     sensors: SensorsSpec = Field(default_factory=SensorsSpec)
@@ -139,6 +152,8 @@ class SimulationSpec(StrictModel):
 
     @model_validator(mode="after")
     def _check(self):
+        if self.ndi is not None and (self.attitude is not None or self.arm is not None):
+            raise ValueError("'ndi' drives the wheels and the arm: remove 'attitude' and 'arm'")
         period = 1.0 / self.control_rate
         ratio = period / self.dt
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

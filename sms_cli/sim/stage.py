@@ -61,7 +61,7 @@ def run_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None 
     links = list(sm.link_parents)
     rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
     with rec:
-        result = Simulation(sm, spec, rec, progress).run()
+        result = Simulation(sm, spec, rec, progress, results_dir=results.path, mission_dir=loaded.path.parent).run()
         rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
     write_text_atomic(results.file("simulation.csv"), _trace_csv(result.trace, sm))
     plots = plot_simulation(result.trace, sm, [p.name for p in spec.phases], results.path)

@@ -1,0 +1,200 @@
+"""Seed 004 §3.3–3.4: nonlinear dynamic inversion (NDI) of the actuators' reduced dynamics with a
+Luenberger observer of the unmeasured flexible and base states.
+
+Coordinates (SystemModel, augmented velocity x = [v; η̇]): base linear (3), base angular ω0
+(3, base frame), actuators a = wheels then arm joints (v-index order), flexible f = spring
+joints then modal coordinates η. With u = [base; f] the unactuated coordinates, the equations
+M ẍ + r(q, x, f) = [0; τ_a; 0] (r = bias − internal forces) give, eliminating ẍ_u,
+
+    τ_a = M◇ q̈_a + r_a − M_au M_uu⁻¹ r_u,     M◇ = M_aa − M_au M_uu⁻¹ M_ua      (3.33)–(3.35)
+
+so τ_a = M◇ v + n gives q̈_a = v exactly when the state is known. The controller measures the
+configuration q, the actuator rates and ω0 (gyro); it estimates x_e = [f; ω0; ḟ] with the
+observer (3.31) on the linearisation at rest of ``sms_cli.synthesis.reduced`` (re-evaluated at
+the measured configuration every control period, discretised exactly over the period):
+
+    x̂̇ = A_e x̂ + B_τ τ_a + L (ω0 − C_e x̂),     B_τ = [0; −M*⁻¹ M_bq M_qq⁻¹]
+
+and the base linear velocity from zero linear momentum (the Routh reduction the synthesis uses).
+
+Commands v (actuator accelerations, rad/s² or m/s²): arm joints v = q̈_d + kp ε + kv ε̇,
+ε = q_d − q (gains from ``gains.yaml`` of ``sms synthesize`` or the mission); wheels hold the base
+attitude: ω_des = ω_ref − k_att θ_e (θ_e the rotation vector of q_ref⁻¹ q, base frame), the wheel
+rates that move the base rate to ω_des at constant angular momentum, q̇_rd = q̇_r − M_ωr⁺ M_ωω
+(ω_des − ω0), and v_r = kv (q̇_rd − q̇_r).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from sms_cli.model.system import SystemModel
+from sms_cli.sim.attitude_math import attitude_error, quat_conj, quat_mul
+from sms_cli.sim.interfaces import ArmRef, AttitudeRef, Sensed
+from sms_cli.synthesis.reduced import flexible_stiffness, model_index
+
+
+class NdiObserver:
+    """Combined wheel + arm law: returns actuator torques (wheels first, then arm joints)."""
+
+    def __init__(self, sm: SystemModel, kp: np.ndarray, kv: np.ndarray, L: np.ndarray, attitude_gain: float,
+                 period: float):
+        self.sm = sm
+        self.ix, self.names, _ = model_index(sm)
+        self.K_f, self.C_f = flexible_stiffness(sm)
+        self.n_f = self.K_f.shape[0]
+        self.n_r, self.n_m = len(sm.wheels), len(sm.arm)
+        self.kp = np.broadcast_to(np.asarray(kp, float), (self.n_r + self.n_m,)).copy()
+        self.kv = np.broadcast_to(np.asarray(kv, float), (self.n_r + self.n_m,)).copy()
+        self.L = np.asarray(L, float)
+        n_e = 2 * self.n_f + 3
+        if self.L.shape != (n_e, 3):
+            raise ValueError(f"observer gain L must be {n_e}×3 for x = [f; ω0; ḟ], got {self.L.shape}")
+        self.k_att = float(attitude_gain)
+        self.T = float(period)
+        self.x_hat = np.zeros(n_e)
+        self.u = np.concatenate([self.ix.base_linear, self.ix.base_angular, self.ix.flexible])
+        self.wheel_limit = np.array([w.max_torque for w in sm.wheels])
+        self.saturated = False
+        self.a = self.ix.actuators
+        self._started = False
+
+    def reset(self) -> None:
+        self.x_hat[:] = 0.0
+        self._started = False
+
+    # ------------------------------------------------------------------ estimation
+    def _full_velocity(self, M: np.ndarray, s: Sensed) -> np.ndarray:
+        """x̂ = [v_lin; ω0; q̇_a; ḟ̂] with v_lin from zero linear momentum."""
+        sm, nf = self.sm, self.n_f
+        x = np.zeros(sm.nx)
+        x[self.ix.base_angular] = s.omega
+        x[self.ix.actuators] = s.v[self.ix.actuators]
+        x[self.ix.flexible] = self.x_hat[nf + 3:]
+        lin = self.ix.base_linear
+        x[lin] = -np.linalg.solve(M[np.ix_(lin, lin)], M[lin] @ x)
+        return x
+
+    def _observer_step(self, M: np.ndarray, y: np.ndarray, tau_a: np.ndarray) -> None:
+        """Exact ZOH propagation of the observer over one control period."""
+        from sms_cli.synthesis.reduced import error_model_at_rest
+
+        em = error_model_at_rest(M, self.K_f, self.C_f, self.ix)
+        keep = np.concatenate([self.ix.base_angular, self.ix.actuators, self.ix.flexible])
+        lin = self.ix.base_linear
+        Mk = M[np.ix_(keep, keep)] - M[np.ix_(keep, lin)] @ np.linalg.solve(M[np.ix_(lin, lin)], M[np.ix_(lin, keep)])
+        n_w, n_q = 3, len(self.a)
+        b = np.concatenate([np.arange(n_w), n_w + n_q + np.arange(self.n_f)])
+        q = n_w + np.arange(n_q)
+        Mbb, Mbq, Mqq = Mk[np.ix_(b, b)], Mk[np.ix_(b, q)], Mk[np.ix_(q, q)]
+        Mstar = Mbb - Mbq @ np.linalg.solve(Mqq, Mbq.T)
+        B_tau = np.zeros((len(self.x_hat), n_q))
+        B_tau[self.n_f:] = -np.linalg.solve(Mstar, Mbq @ np.linalg.inv(Mqq))
+        A_L = em.A_e - self.L @ em.C_e
+        n = len(self.x_hat)
+        aug = np.zeros((n + 1, n + 1))
+        aug[:n, :n] = A_L
+        aug[:n, n] = B_tau @ tau_a + self.L @ y
+        E = scipy.linalg.expm(aug * self.T)
+        self.x_hat = E[:n, :n] @ self.x_hat + E[:n, n]
+
+    # ------------------------------------------------------------------ control
+    def torques(self, s: Sensed, att_ref: AttitudeRef, arm_ref: ArmRef) -> np.ndarray:
+        """Actuator torques (wheels, then arm) for this control period; call ``observe`` afterwards."""
+        sm = self.sm
+        M = sm.mass_matrix(s.q)
+        if not self._started:
+            self.x_hat[self.n_f:self.n_f + 3] = s.omega
+            self._started = True
+        x = self._full_velocity(M, s)
+        v_hat, etadot_hat = x[: sm.nv], x[sm.nv:]
+        eta_hat = self.x_hat[self.n_f - sm.n_modes:self.n_f] if sm.n_modes else np.zeros(0)
+        r = sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat)
+        # passive spring joints are flexible coordinates: their positions are estimated too
+        u, a = self.u, self.a
+        Mau = M[np.ix_(a, u)]
+        Muu_inv_Mua = np.linalg.solve(M[np.ix_(u, u)], M[np.ix_(u, a)])
+        M_dia = M[np.ix_(a, a)] - Mau @ Muu_inv_Mua
+        n_term = r[a] - Mau @ np.linalg.solve(M[np.ix_(u, u)], r[u])
+        # commands
+        v_cmd = np.zeros(len(a))
+        if self.n_m:
+            q_arm = s.q_arm
+            e, ed = arm_ref.q - q_arm, arm_ref.qd - s.qd_arm
+            v_cmd[self.n_r:] = arm_ref.qdd + self.kp[self.n_r:] * e + self.kv[self.n_r:] * ed
+        if self.n_r:
+            theta = attitude_error(att_ref.quat, s.quat)
+            R_rb = _rot(quat_mul(quat_conj(s.quat), att_ref.quat))  # base ← reference
+            w_des = R_rb @ att_ref.omega - self.k_att * theta
+            w = self.ix.base_angular
+            r_idx = a[: self.n_r]
+            dq_r = -np.linalg.pinv(M[np.ix_(w, r_idx)]) @ (M[np.ix_(w, w)] @ (w_des - s.omega))
+            v_cmd[: self.n_r] = self.kv[: self.n_r] * dq_r
+        self._M, self._y = M, s.omega
+        return self._saturation_aware(M_dia, n_term, v_cmd)
+
+    def _saturation_aware(self, M_dia: np.ndarray, n_term: np.ndarray, v_cmd: np.ndarray) -> np.ndarray:
+        """τ = M◇ v + n, except that wheel torques are first clipped to their limits and the arm torques
+        then computed for the wheel accelerations those clipped torques really produce: the arm still
+        gets q̈_m = v_m when the wheels saturate (wheel authority is the usual bottleneck)."""
+        nr = self.n_r
+        tau = M_dia @ v_cmd + n_term
+        self.saturated = bool(nr and np.any(np.abs(tau[:nr]) > self.wheel_limit))
+        if not self.saturated:
+            return tau
+        r, m = slice(0, nr), slice(nr, None)
+        tau_r = np.clip(tau[:nr], -self.wheel_limit, self.wheel_limit)
+        qdd_r = np.linalg.solve(M_dia[r, r], tau_r - M_dia[r, m] @ v_cmd[m] - n_term[r])
+        tau[:nr] = tau_r
+        tau[m] = M_dia[m, r] @ qdd_r + M_dia[m, m] @ v_cmd[m] + n_term[m]
+        return tau
+
+    def observe(self, tau_applied: np.ndarray) -> None:
+        """Propagate the observer over the period with the torques actually applied (after saturation)."""
+        self._observer_step(self._M, self._y, tau_applied)
+
+
+def _rot(quat: np.ndarray) -> np.ndarray:
+    x, y, z, w = quat
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_dir=None) -> NdiObserver:
+    """NdiObserver from a mission's ``simulation.ndi`` (and ``gains.yaml`` when gains are not inline)."""
+    from pathlib import Path
+
+    from sms_cli.errors import InputError, Problem
+
+    kp, kv, L = spec.kp, spec.kv, spec.L
+    if kp is None or kv is None or L is None:
+        from sms_cli.synthesis.gains_io import read_gains
+
+        candidates = [Path(mission_dir) / spec.gains] if spec.gains and mission_dir else []
+        candidates += [Path(results_dir) / (spec.gains or "gains.yaml")] if results_dir else []
+        path = next((c for c in candidates if c.exists()), None)
+        if path is None:
+            raise InputError(problems=[Problem(
+                "simulation.ndi needs gains: none given and no gains.yaml found "
+                f"({', '.join(str(c) for c in candidates) or 'no results folder'})", field="simulation.ndi",
+                hint="run `sms synthesize` on this mission first (same --out), or give kp, kv and L")])
+        g = read_gains(path)
+        if g.controller is None or g.observer is None:
+            raise InputError(problems=[Problem(f"{path}: the NDI needs controller and observer gains (law lmi)",
+                                               hint="synthesize with synthesis.law: lmi")])
+        names = [w.name for w in sm.wheels] + [a.name for a in sm.arm]
+        if list(g.actuators) != names:
+            raise InputError(problems=[Problem(f"{path}: gains are for actuators {g.actuators}, the model has {names}",
+                                               hint="re-run sms synthesize for this mission")])
+        if g.controller.units != "acceleration":
+            raise InputError(problems=[Problem(f"{path}: NDI gains must be in 'acceleration' units")])
+        kp = kp if kp is not None else g.controller.kp
+        kv = kv if kv is not None else g.controller.kv
+        L = L if L is not None else g.observer.L
+    try:
+        return NdiObserver(sm, np.asarray(kp, float), np.asarray(kv, float), np.asarray(L, float),
+                           spec.attitude_gain, period)
+    except ValueError as exc:
+        raise InputError(problems=[Problem(str(exc), field="simulation.ndi")]) from None

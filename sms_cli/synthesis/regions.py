@@ -1,0 +1,103 @@
+"""LMI pole regions (Chilali & Gahinet 1996) and their membership test.
+
+A region D = {Re s ≤ −α} ∩ {damping ratio ≥ ζ_min} ∩ {|s| ≤ r}. A matrix A has all its
+eigenvalues in D if (and, for each single region, only if) there is X ≻ 0 with
+``L ⊗ X + M ⊗ (A X) + Mᵀ ⊗ (A X)ᵀ ≺ 0`` for the region's characteristic (L, M).
+Here the LMIs are written on ``N = A X`` so that synthesis can substitute ``N = A X + B W``
+(controller, variable X = Q) or ``N = (P A − W C)ᵀ`` (observer, variable X = P: Aᵀ has the same
+eigenvalues and the regions are symmetric about the real axis).
+Rates are in rad/s (or in the scaled time of the caller, consistently).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PoleRegion:
+    """Re s ≤ −alpha, damping ≥ zeta_min, |s| ≤ radius (rad/s)."""
+
+    alpha: float
+    zeta_min: float
+    radius: float
+
+    def scaled(self, omega_c: float) -> "PoleRegion":
+        """The same region in time scaled by ω_c (s̃ = s/ω_c)."""
+        return PoleRegion(self.alpha / omega_c, self.zeta_min, self.radius / omega_c)
+
+    def margins(self, eigs: np.ndarray) -> dict[str, np.ndarray]:
+        """Signed distances (≥ 0 inside) of each eigenvalue to each boundary."""
+        eigs = np.asarray(eigs, dtype=complex)
+        re, mag = eigs.real, np.abs(eigs)
+        zeta = np.where(mag > 0, -re / np.where(mag > 0, mag, 1.0), 1.0)
+        return {
+            "decay": -re - self.alpha,
+            "damping": zeta - self.zeta_min,
+            "disk": self.radius - mag,
+        }
+
+    def contains(self, eigs: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
+        """True for each eigenvalue inside the region (with a relative tolerance)."""
+        m = self.margins(eigs)
+        tol_r = rtol * max(self.radius, 1.0)
+        return (m["decay"] >= -tol_r) & (m["damping"] >= -rtol) & (m["disk"] >= -tol_r)
+
+    def as_dict(self) -> dict[str, float]:
+        return {"decay_rate": self.alpha, "min_damping": self.zeta_min, "max_frequency": self.radius}
+
+
+def region_lmis(cp, N, X, region: PoleRegion, eps: float) -> list:
+    """cvxpy constraints placing eig(A) in ``region`` where ``N = A X`` (affine) and X ≻ 0.
+
+    ``cp`` is the cvxpy module (passed in so importing this file stays cheap).
+    """
+    n = X.shape[0]
+    cons = []
+    # half plane: N + Nᵀ + 2αX ≺ 0
+    cons.append(_sym(cp, N + N.T + 2 * region.alpha * X) << -eps * np.eye(n))
+    # disk centred at 0: [[−rX, N], [Nᵀ, −rX]] ≺ 0
+    disk = cp.bmat([[-region.radius * X, N], [N.T, -region.radius * X]])
+    cons.append(_sym(cp, disk) << -eps * np.eye(2 * n))
+    if region.zeta_min > 0:
+        theta = math.acos(region.zeta_min)
+        s, c = math.sin(theta), math.cos(theta)
+        cone = cp.bmat([[s * (N + N.T), c * (N - N.T)], [c * (N.T - N), s * (N + N.T)]])
+        cons.append(_sym(cp, cone) << -eps * np.eye(2 * n))
+    return cons
+
+
+def _sym(cp, M):
+    return (M + M.T) / 2
+
+
+def region_feasible(A: np.ndarray, region: PoleRegion, part: str = "all") -> bool:
+    """Analysis LMI: is there one X ≻ 0 certifying eig(A) ⊂ region? (``part`` restricts
+    the test to one sub-region: 'decay', 'disk', 'damping' or 'all'.)"""
+    import cvxpy as cp
+
+    n = A.shape[0]
+    X = cp.Variable((n, n), symmetric=True)
+    N = A @ X
+    eps = 1e-7
+    sub = region
+    cons = [X >> np.eye(n)]
+    if part == "decay":
+        cons.append(_sym(cp, N + N.T + 2 * region.alpha * X) << -eps * np.eye(n))
+    elif part == "disk":
+        disk = cp.bmat([[-region.radius * X, N], [N.T, -region.radius * X]])
+        cons.append(_sym(cp, disk) << -eps * np.eye(2 * n))
+    elif part == "damping":
+        theta = math.acos(region.zeta_min)
+        s, c = math.sin(theta), math.cos(theta)
+        cone = cp.bmat([[s * (N + N.T), c * (N - N.T)], [c * (N.T - N), s * (N + N.T)]])
+        cons.append(_sym(cp, cone) << -eps * np.eye(2 * n))
+    else:
+        cons += region_lmis(cp, N, X, sub, eps)
+    cons.append(X << 1e6 * np.eye(n))
+    prob = cp.Problem(cp.Minimize(0), cons)
+    prob.solve(solver=cp.CLARABEL)
+    return prob.status in ("optimal", "optimal_inaccurate")
