@@ -164,6 +164,9 @@ class SystemModel:
         self._spring_c = np.array([s.damping for s in self.springs])
         self._spring_rest = np.array([s.rest for s in self.springs])
         self._prepare_base_modes()
+        # Pinocchio 4's Python crba returns the full symmetric matrix; older ones fill the upper triangle
+        M = pin.crba(self.model, self.data, pin.neutral(self.model))
+        self._crba_full = bool(np.allclose(M, M.T) and (self.nv == 1 or np.any(np.tril(M, -1) != 0)))
 
     def _prepare_base_modes(self) -> None:
         """Fast path when every appendage is mounted on the base body (the usual case):
@@ -237,7 +240,8 @@ class SystemModel:
     # ------------------------------------------------------------------ dynamics
     def rigid_mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Symmetric joint-space inertia H(q) of the rigid system (nv×nv)."""
-        return _symmetric(pin.crba(self.model, self.data, q))
+        M = pin.crba(self.model, self.data, q)
+        return M.copy() if self._crba_full else _symmetric(M)
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Augmented mass matrix [[H, JᵀLᵀ], [L J, I]] (nx×nx)."""
@@ -338,6 +342,13 @@ class SystemModel:
         Both are conserved without external forces when there are no modes. With modes, the
         exactly conserved pair is (p, k about a fixed world point): the hybrid model's rigid CoM
         does not move with the modal deformation, so k about it is conserved only when p = 0."""
+        if about not in ("com", "origin"):
+            raise ValueError(f"about must be 'com' or 'origin', not {about!r}")
+        p, k_com, k_origin = self.momenta(q, v, etadot)
+        return p, (k_com if about == "com" else k_origin)
+
+    def momenta(self, q: np.ndarray, v: np.ndarray, etadot: np.ndarray | None = None):
+        """(p, k about the CoM, k about the world origin), world frame, in one pass."""
         m, d = self.model, self.data
         hg = pin.computeCentroidalMomentum(m, d, q, v)
         c = d.com[0].copy()
@@ -348,16 +359,15 @@ class SystemModel:
                 f_world = d.oMf[a.frame_id].act(pin.Force(a.L.T @ etadot[a.modes]))  # about the world origin
                 p += f_world.linear
                 k += f_world.angular
-        if about == "com":
-            k = k - _cross(c, p)
-        elif about != "origin":
-            raise ValueError(f"about must be 'com' or 'origin', not {about!r}")
-        return p, k
+        return p, k - _cross(c, p), k
 
     def energy(self, q: np.ndarray, v: np.ndarray, eta: np.ndarray, etadot: np.ndarray) -> float:
         """Kinetic + elastic energy (J): ½xᵀMx + ½ηᵀΩ²η + springs."""
-        x = np.concatenate([v, etadot])
-        e = 0.5 * x @ self.mass_matrix(q) @ x
+        if self.n_modes:
+            x = np.concatenate([v, etadot])
+            e = 0.5 * x @ self.mass_matrix(q) @ x
+        else:
+            e = 0.5 * v @ self.rigid_mass_matrix(q) @ v
         if self.n_modes:
             e += 0.5 * np.sum(self._omega**2 * eta**2)
         if self.springs:

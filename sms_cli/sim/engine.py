@@ -92,6 +92,7 @@ class Simulation:
         self._fixed = False
         self._segment = 0
         self._base_torque = np.zeros(3)
+        self._mom_t, self._mom = None, None
 
     # ------------------------------------------------------------------ helpers
     def _accel(self, tau: np.ndarray, fixed: bool = False):
@@ -121,6 +122,13 @@ class Simulation:
         if s.eta.size and float(np.max(np.abs(s.eta))) > lim.max_modal_amplitude:
             raise Diverged(f"a modal amplitude exceeded {lim.max_modal_amplitude:g}")
 
+    def _momentum(self, t: float, s: State):
+        """(p, k about the CoM, k about the world origin), world frame, once per time (recording and metrics share it)."""
+        if self._mom_t != t:
+            self._mom_t = t
+            self._mom = self.sm.momenta(s.q, s.v, s.etadot)
+        return self._mom
+
     def _ee_position(self, q: np.ndarray) -> np.ndarray:
         return self.sm.frame_pose(q, self.sm.ee_frame_id).translation
 
@@ -135,7 +143,7 @@ class Simulation:
             poses[i, :3] = M.translation
             poses[i, 3:] = pin.Quaternion(M.rotation).coeffs()
         rpy = pin.rpy.matrixToRpy(d.oMf[self.sm.base_frame_id].rotation)
-        p, k = self.sm.momentum(s.q, s.v, s.etadot)
+        p, k, _ = self._momentum(t, s)
         ee = d.oMf[self.sm.ee_frame_id].translation
         scalars = {
             "/attitude": {"qx": s.q[3], "qy": s.q[4], "qz": s.q[5], "qw": s.q[6],
@@ -315,8 +323,8 @@ class Simulation:
         tr.saturated.append(sat)
         tr.base_torque.append(self._base_torque.copy())
         tr.modal_peak.append(float(np.max(np.abs(s.eta))) if s.eta.size else 0.0)
-        p, k = sm.momentum(s.q, s.v, s.etadot, about="origin")
-        tr.momentum.append(np.concatenate([p, k]))
+        p, _, k_origin = self._momentum(t, s)
+        tr.momentum.append(np.concatenate([p, k_origin]))
         tr.energy.append(sm.energy(s.q, s.v, s.eta, s.etadot))
         if self._fixed:
             tau = np.zeros(sm.nv)

@@ -56,6 +56,10 @@ class NdiObserver:
         self.x_hat = np.zeros(n_e)
         self.u = np.concatenate([self.ix.base_linear, self.ix.base_angular, self.ix.flexible])
         self.wheel_limit = np.array([w.max_torque for w in sm.wheels])
+        self.refresh = 0.01
+        self._disc = None
+        self._disc_q = None
+        self._q_act_idx = np.array([a.q_index for a in sm.arm], dtype=int)
         self.saturated = False
         self.a = self.ix.actuators
         self._started = False
@@ -63,6 +67,7 @@ class NdiObserver:
     def reset(self) -> None:
         self.x_hat[:] = 0.0
         self._started = False
+        self._disc = None
 
     # ------------------------------------------------------------------ estimation
     def _full_velocity(self, M: np.ndarray, s: Sensed) -> np.ndarray:
@@ -76,8 +81,17 @@ class NdiObserver:
         x[lin] = -np.linalg.solve(M[np.ix_(lin, lin)], M[lin] @ x)
         return x
 
-    def _observer_step(self, M: np.ndarray, y: np.ndarray, tau_a: np.ndarray) -> None:
-        """Exact ZOH propagation of the observer over one control period."""
+    def _observer_step(self, M: np.ndarray, q_act: np.ndarray, y: np.ndarray, tau_a: np.ndarray) -> None:
+        """Exact ZOH propagation of the observer over one control period: x̂⁺ = Φ x̂ + Γ (B_τ τ + L y),
+        Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds, A_L = A_e − L C_e. The discretisation is refreshed when the
+        actuator configuration has moved by more than ``refresh`` (rad or m) since the last refresh."""
+        if self._disc is None or np.max(np.abs(q_act - self._disc_q)) > self.refresh:
+            self._disc = self._discretise(M)
+            self._disc_q = q_act.copy()
+        Phi, Gamma, B_tau = self._disc
+        self.x_hat = Phi @ self.x_hat + Gamma @ (B_tau @ tau_a + self.L @ y)
+
+    def _discretise(self, M: np.ndarray):
         from sms_cli.synthesis.reduced import error_model_at_rest
 
         em = error_model_at_rest(M, self.K_f, self.C_f, self.ix)
@@ -92,12 +106,20 @@ class NdiObserver:
         B_tau = np.zeros((len(self.x_hat), n_q))
         B_tau[self.n_f:] = -np.linalg.solve(Mstar, Mbq @ np.linalg.inv(Mqq))
         A_L = em.A_e - self.L @ em.C_e
-        n = len(self.x_hat)
-        aug = np.zeros((n + 1, n + 1))
-        aug[:n, :n] = A_L
-        aug[:n, n] = B_tau @ tau_a + self.L @ y
-        E = scipy.linalg.expm(aug * self.T)
-        self.x_hat = E[:n, :n] @ self.x_hat + E[:n, n]
+        lam, V = np.linalg.eig(A_L)
+        if np.linalg.cond(V) < 1e8 and np.min(np.abs(lam)) > 1e-12:
+            Vi = np.linalg.inv(V)
+            e = np.exp(lam * self.T)
+            Phi = ((V * e) @ Vi).real
+            Gamma = ((V * ((e - 1.0) / lam)) @ Vi).real
+        else:  # defective or singular: the augmented-matrix exponential
+            n = len(self.x_hat)
+            aug = np.zeros((2 * n, 2 * n))
+            aug[:n, :n] = A_L
+            aug[:n, n:] = np.eye(n)
+            E = scipy.linalg.expm(aug * self.T)
+            Phi, Gamma = E[:n, :n], E[:n, n:]
+        return Phi, Gamma, B_tau
 
     # ------------------------------------------------------------------ control
     def torques(self, s: Sensed, att_ref: AttitudeRef, arm_ref: ArmRef) -> np.ndarray:
@@ -131,7 +153,7 @@ class NdiObserver:
             r_idx = a[: self.n_r]
             dq_r = -np.linalg.pinv(M[np.ix_(w, r_idx)]) @ (M[np.ix_(w, w)] @ (w_des - s.omega))
             v_cmd[: self.n_r] = self.kv[: self.n_r] * dq_r
-        self._M, self._y = M, s.omega
+        self._M, self._y, self._q_act = M, s.omega, s.q[self._q_act_idx]
         return self._saturation_aware(M_dia, n_term, v_cmd)
 
     def _saturation_aware(self, M_dia: np.ndarray, n_term: np.ndarray, v_cmd: np.ndarray) -> np.ndarray:
@@ -152,7 +174,7 @@ class NdiObserver:
 
     def observe(self, tau_applied: np.ndarray) -> None:
         """Propagate the observer over the period with the torques actually applied (after saturation)."""
-        self._observer_step(self._M, self._y, tau_applied)
+        self._observer_step(self._M, self._q_act, self._y, tau_applied)
 
 
 def _rot(quat: np.ndarray) -> np.ndarray:
