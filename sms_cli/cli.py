@@ -219,6 +219,71 @@ def simulate_cmd(
     run_guarded(body)
 
 
+@app.command("run")
+def run_cmd(
+    mission: MissionArg,
+    out: OutOpt = None,
+    progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="stage progress bars (default: on a terminal)")] = None,
+    report: Annotated[bool, typer.Option("--report/--no-report", help="write report.html into the results folder")] = True,
+) -> None:
+    """Every stage the mission configures (budget, analyze, synthesize, simulate), requirements, then the report.
+
+    A failing stage is reported and the others go on; the exit code is the worst met."""
+
+    def body() -> int:
+        from sms_cli.run.orchestrate import format_run, run_mission
+
+        summary = run_mission(mission, default_out(mission, out), progress=progress, report=report, debug=_state["debug"])
+        typer.echo(format_run(summary), nl=False)
+        return summary.exit_code
+
+    run_guarded(body)
+
+
+@app.command("report")
+def report_cmd(
+    results: Annotated[Path, typer.Argument(help="results folder (with results.json)", show_default=False)],
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="HTML file (default: <results>/report.html)")] = None,
+    mission: Annotated[Optional[Path], typer.Option("--mission", "-m", help="mission file: re-evaluate its requirements")] = None,
+    pdf: Annotated[bool, typer.Option("--pdf", help="also print a PDF next to the HTML (needs chromium)")] = False,
+) -> None:
+    """One self-contained HTML report (plots embedded) of a results folder; optional PDF."""
+
+    def body() -> int:
+        from sms_cli.report.build import write_report
+
+        path = write_report(results, output, mission)
+        typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.2f} MB)")
+        if pdf:
+            from sms_cli.report.pdf import print_pdf
+
+            typer.echo(f"pdf: {print_pdf(path)}")
+        return 0
+
+    run_guarded(body)
+
+
+@app.command("check")
+def check_cmd(
+    results: Annotated[Path, typer.Argument(help="results folder (with results.json)", show_default=False)],
+    mission: Annotated[Optional[Path], typer.Option("--mission", "-m", help="read the requirements from this mission file "
+                                                    "(default: the copy stored by sms run)")] = None,
+    baseline: Annotated[Optional[Path], typer.Option("--baseline", "-b", help="compare with this baseline (JSON)")] = None,
+    junit: Annotated[Optional[Path], typer.Option("--junit", help="write a JUnit XML report here")] = None,
+    write_baseline: Annotated[Optional[Path], typer.Option("--write-baseline", help="write a baseline of these results here")] = None,
+) -> None:
+    """Requirements and regression baseline → table, JUnit XML, exit 1 when one fails."""
+
+    def body() -> int:
+        from sms_cli.check.check import run_check
+
+        outcome = run_check(results, mission, baseline, junit, write_baseline)
+        typer.echo(outcome.format(), nl=False)
+        return outcome.exit_code
+
+    run_guarded(body)
+
+
 @app.command("schema")
 def schema_cmd(
     output: Annotated[Optional[Path], typer.Option("--output", "-o", help="write to this file instead of stdout")] = None,

@@ -14,6 +14,7 @@ from sms_cli.mission.system import (
     WheelsSpec,
 )
 from sms_cli.analysis.schema import AnalysisSpec
+from sms_cli.check.schema import RequirementSpec
 from sms_cli.orbit.schema import BudgetSpec
 from sms_cli.sim.schema import SimulationSpec
 from sms_cli.synthesis.schema import SynthesisSpec
@@ -40,5 +41,8 @@ class Mission(StrictModel):
         None, description="workspace sampling, kinematic indices, design variants and modal analysis (sms analyze)")
     simulation: SimulationSpec | None = Field(
         None, description="nonlinear simulation (sms simulate): steps, controllers, actuators, sensors, phases")
+    requirements: list[RequirementSpec] = Field(
+        default_factory=list, description="pass/fail requirements on results.json metrics (sms run, sms check): "
+                                          "{name, metric: dotted path, max | min | equals (+ tol), unit, stage}")
     synthesis: SynthesisSpec | None = Field(
         None, description="controller/observer gain synthesis (sms synthesize): seed 004 LMI, PD, LQR or SMC")

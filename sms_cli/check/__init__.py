@@ -1,0 +1,1 @@
+"""Requirements (``requirements:`` in mission files), regression baselines and JUnit output (``sms check``)."""

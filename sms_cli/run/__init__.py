@@ -1,0 +1,1 @@
+"""``sms run``: orchestration of the stages a mission configures."""

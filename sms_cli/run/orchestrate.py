@@ -1,0 +1,183 @@
+"""``sms run``: every configured stage into one results folder, requirements, then the report.
+
+A failing stage is reported and the stages that do not need it still run; the exit code is the
+worst one met (0 ok < 1 requirements < 2 input < 3 numerical < 4 internal; 130 interrupted is
+raised as KeyboardInterrupt). results.json gets two extra sections: ``run`` (provenance and the
+stage outcomes) and ``requirements`` (the specs and their verdicts).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from sms_cli.errors import EXIT_NUMERICAL, EXIT_OK, EXIT_REQUIREMENTS, SmsError
+from sms_cli.results import ResultsDir
+from sms_cli.run.stages import STAGES, call_stage
+
+EXIT_INTERNAL = 4
+#: sections `sms run` rewrites (stale ones from an earlier run are dropped first)
+OWNED_SECTIONS = ("run", "requirements") + tuple(s.section for s in STAGES)
+
+
+@dataclass
+class StageOutcome:
+    name: str
+    status: str  # ok | failed | skipped | not configured | interrupted
+    seconds: float = 0.0
+    exit_code: int = 0
+    message: str = ""
+
+
+@dataclass
+class RunSummary:
+    mission: str
+    out: Path
+    stages: list[StageOutcome] = field(default_factory=list)
+    verdicts: list = field(default_factory=list)
+    report: Path | None = None
+
+    @property
+    def exit_code(self) -> int:
+        codes = [s.exit_code for s in self.stages]
+        if any(not v.passed for v in self.verdicts):
+            codes.append(EXIT_REQUIREMENTS)
+        return max(codes, default=EXIT_OK)
+
+
+def _failure(exc: BaseException, debug: bool) -> tuple[int, str]:
+    if isinstance(exc, SmsError):
+        return exc.exit_code, exc.render()
+    if debug:
+        raise exc
+    if type(exc).__name__ in {"LinAlgError", "FloatingPointError"}:
+        return EXIT_NUMERICAL, f"numerical failure: {type(exc).__name__}: {exc}"
+    return EXIT_INTERNAL, f"internal error (a bug in sms; run with --debug): {type(exc).__name__}: {exc}"
+
+
+def _fresh(rd: ResultsDir) -> None:
+    """Drop the sections an earlier run left, so nothing stale reaches the report or the check."""
+    current = rd.read()
+    kept = {k: v for k, v in current.items() if k not in OWNED_SECTIONS}
+    if kept != current or not rd.file("results.json").exists():
+        from sms_cli.results import write_json_atomic
+
+        write_json_atomic(rd.file("results.json"), kept)
+
+
+def _echo_err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def run_mission(mission_path: Path, out: Path, *, progress: bool | None = None, report: bool = True,
+                debug: bool = False, echo: Callable[[str], None] = _echo_err) -> RunSummary:
+    """Run the mission's stages into ``out``; returns the summary (never raises for a stage failure)."""
+    from sms_cli.check.requirements import evaluate_all
+    from sms_cli.mission.load import load_mission
+    from sms_cli.run.provenance import provenance
+
+    loaded = load_mission(mission_path)
+    mission = loaded.mission
+    rd = ResultsDir(out)
+    rd.path.mkdir(parents=True, exist_ok=True)
+    _fresh(rd)
+    prov = provenance(loaded, f"sms run {mission_path} -o {out}")
+    summary = RunSummary(mission.name, rd.path)
+    todo = [s for s in STAGES if s.configured(mission)]
+    echo(f"sms run {mission.name} → {rd.path}/ ({len(todo)} stage{'s' if len(todo) != 1 else ''}: "
+         f"{', '.join(s.name for s in todo) or 'none'})")
+
+    def save_run(state: str) -> None:
+        rd.update("run", {**prov, "state": state, "stages": [asdict(s) for s in summary.stages],
+                          "exit_code": summary.exit_code})
+
+    save_run("running")
+    failed: set[str] = set()
+    for stage in STAGES:
+        if not stage.configured(mission):
+            why = "no robot" if stage.mission_key == "robot" else f"no '{stage.mission_key}:' section"
+            summary.stages.append(StageOutcome(stage.name, "not configured", message=why))
+            continue
+        k = todo.index(stage) + 1
+        blocked = [n for n in stage.needs if n in failed]
+        if blocked:
+            failed.add(stage.name)
+            summary.stages.append(StageOutcome(stage.name, "skipped", message=f"needs {', '.join(blocked)}, which failed"))
+            echo(f"[{k}/{len(todo)}] {stage.name}: skipped ({', '.join(blocked)} failed)")
+            continue
+        echo(f"[{k}/{len(todo)}] {stage.name} …")
+        t0 = time.perf_counter()
+        try:
+            call_stage(stage, stage.load(), loaded, rd.path, progress)
+            outcome = StageOutcome(stage.name, "ok", time.perf_counter() - t0)
+        except KeyboardInterrupt:
+            summary.stages.append(StageOutcome(stage.name, "interrupted", time.perf_counter() - t0, 130))
+            save_run("interrupted")
+            raise
+        except Exception as exc:  # noqa: BLE001 - reported per stage, the run goes on
+            code, msg = _failure(exc, debug)
+            outcome = StageOutcome(stage.name, "failed", time.perf_counter() - t0, code, msg)
+            failed.add(stage.name)
+        summary.stages.append(outcome)
+        mark = "ok" if outcome.status == "ok" else f"FAILED (exit {outcome.exit_code})"
+        echo(f"[{k}/{len(todo)}] {stage.name}: {mark} in {outcome.seconds:.2f} s")
+        if outcome.message:
+            echo("    " + outcome.message.replace("\n", "\n    "))
+
+    results = rd.read()
+    summary.verdicts = evaluate_all(list(mission.requirements), results)
+    rd.update("requirements", {
+        "specs": [r.model_dump(mode="json", exclude_defaults=True) for r in mission.requirements],
+        "verdicts": [v.as_dict() for v in summary.verdicts],
+        "passed": all(v.passed for v in summary.verdicts),
+    })
+    save_run("done")
+    if report:
+        from sms_cli.report.build import write_report
+
+        t0 = time.perf_counter()
+        try:
+            summary.report = write_report(rd.path, rd.path / "report.html")
+            summary.stages.append(StageOutcome("report", "ok", time.perf_counter() - t0))
+        except KeyboardInterrupt:
+            raise
+        except Exception as exc:  # noqa: BLE001
+            code, msg = _failure(exc, debug)
+            summary.stages.append(StageOutcome("report", "failed", time.perf_counter() - t0, code, msg))
+            echo(f"report: FAILED: {msg}")
+        save_run("done")
+    return summary
+
+
+def format_run(summary: RunSummary) -> str:
+    """The verdict table: stage, status, time, requirement verdicts per stage."""
+    per_stage: dict[str, list] = {}
+    for v in summary.verdicts:
+        per_stage.setdefault(v.stage, []).append(v)
+    section_of = {s.name: s.section for s in STAGES}
+    head = ["stage", "status", "time [s]", "requirements"]
+    rows = []
+    for s in summary.stages:
+        vs = per_stage.pop(section_of.get(s.name, s.name), [])
+        req = f"{sum(v.passed for v in vs)}/{len(vs)} met" if vs else "—"
+        status = s.status if s.status != "failed" else f"FAILED ({s.exit_code})"
+        rows.append([s.name, status, f"{s.seconds:.2f}" if s.status in ("ok", "failed", "interrupted") else "—", req])
+    for stage, vs in per_stage.items():
+        rows.append([stage, "—", "—", f"{sum(v.passed for v in vs)}/{len(vs)} met"])
+    widths = [max(len(r[i]) for r in [head] + rows) for i in range(len(head))]
+    line = lambda r: "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip()  # noqa: E731
+    out = [f"== {summary.mission}: results in {summary.out}/ ==", line(head), "  ".join("-" * w for w in widths)]
+    out += [line(r) for r in rows]
+    if summary.verdicts:
+        from sms_cli.check.requirements import format_verdicts
+
+        out += ["", format_verdicts(summary.verdicts).rstrip()]
+    if summary.report:
+        out.append(f"report: {summary.report}")
+    code = summary.exit_code
+    out.append("verdict: " + ("PASS" if code == 0 else "REQUIREMENTS NOT MET" if code == EXIT_REQUIREMENTS
+                              else f"FAILED (exit {code})"))
+    return "\n".join(out) + "\n"
