@@ -1,0 +1,108 @@
+"""µs per simulated step and real-time factor of every shipped mission with a simulation, with the
+cost split between plant (RKMK4 + dynamics), controller (sensors, references, laws, actuators),
+recording (MCAP) and metrics. CPU time (process_time) is reported next to wall time because
+the machine may be shared.
+
+Usage: python benches/bench_simulate.py [mission.yaml ...] [--no-record]
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import sms_cli.sim.engine as engine  # noqa: E402
+from sms_cli.mission.load import load_mission  # noqa: E402
+from sms_cli.model import compile_system  # noqa: E402
+from sms_cli.model.summary import model_summary  # noqa: E402
+from sms_cli.sim.recorder import McapRecorder  # noqa: E402
+from sms_cli.sim.stage import versions  # noqa: E402
+
+
+class Timer:
+    """Accumulates CPU time spent inside wrapped callables."""
+
+    def __init__(self):
+        self.spent = {"plant": 0.0, "controller": 0.0, "recording": 0.0, "metrics": 0.0}
+
+    def wrap(self, key, fn):
+        spent = self.spent
+        clock = time.process_time
+
+        def timed(*a, **k):
+            t0 = clock()
+            try:
+                return fn(*a, **k)
+            finally:
+                spent[key] += clock() - t0
+
+        return timed
+
+
+def bench(path: Path, record: bool) -> dict:
+    loaded = load_mission(path)
+    sm = compile_system(loaded)
+    spec = loaded.mission.simulation
+    results_dir = ROOT / "results" / "ci" / path.stem  # gains.yaml of a previous `sms run`, if any
+    timer = Timer()
+    orig_step = engine.rkmk4_step
+    engine.rkmk4_step = timer.wrap("plant", orig_step)
+    cls = engine.Simulation
+    saved = {name: getattr(cls, name) for name in ("_control", "_record", "_trace")}
+    cls._control = timer.wrap("controller", saved["_control"])
+    cls._record = timer.wrap("recording", saved["_record"])
+    cls._trace = timer.wrap("metrics", saved["_trace"])
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            rec = None
+            if record:
+                rec = McapRecorder(Path(tmp) / "run.mcap", mission_text=loaded.text, mission_name=loaded.mission.name,
+                                   model_summary=model_summary(sm), urdf_text=sm.urdf_text, versions=versions(),
+                                   record_rate_hz=spec.record_rate)
+                links = list(sm.link_parents)
+                rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
+            sim = cls(sm, spec, rec, False, results_dir=results_dir if results_dir.exists() else None,
+                      mission_dir=path.parent)
+            sim.sensors.measure = timer.wrap("controller", sim.sensors.measure)
+            w0, c0 = time.perf_counter(), time.process_time()
+            if rec is not None:
+                with rec:
+                    res = sim.run()
+                    rec.finish(res.status)
+            else:
+                res = sim.run()
+            wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+    finally:
+        engine.rkmk4_step = orig_step
+        for name, fn in saved.items():
+            setattr(cls, name, fn)
+    n = max(res.steps, 1)
+    split = {k: 1e6 * v / n for k, v in timer.spent.items()}
+    split["other"] = 1e6 * cpu / n - sum(split.values())
+    return {"mission": path.stem, "steps": res.steps, "dt": spec.dt, "sim_s": res.t_end, "wall_us": 1e6 * wall / n,
+            "cpu_us": 1e6 * cpu / n, "rtf_cpu": res.t_end / cpu, "rtf_wall": res.t_end / wall, **split}
+
+
+def main() -> None:
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    record = "--no-record" not in sys.argv
+    paths = [Path(a) for a in args] or sorted(p for p in (ROOT / "missions").glob("*.yaml")
+                                              if load_mission(p).mission.simulation is not None)
+    print(f"recording {'on' if record else 'off'}; µs per plant step (CPU unless noted); RTF = simulated / elapsed time")
+    head = f"{'mission':<28}{'steps':>7}{'dt':>7}{'wall':>8}{'cpu':>8}{'RTF cpu':>9}{'RTF wall':>9}" \
+           f"{'plant':>8}{'control':>9}{'record':>8}{'metrics':>9}{'other':>8}"
+    print(head)
+    for p in paths:
+        r = bench(p, record)
+        print(f"{r['mission']:<28}{r['steps']:>7}{r['dt']:>7.3g}{r['wall_us']:>8.1f}{r['cpu_us']:>8.1f}{r['rtf_cpu']:>9.1f}"
+              f"{r['rtf_wall']:>9.1f}{r['plant']:>8.1f}{r['controller']:>9.1f}{r['recording']:>8.1f}{r['metrics']:>9.1f}"
+              f"{r['other']:>8.1f}")
+
+
+if __name__ == "__main__":
+    main()
