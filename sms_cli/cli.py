@@ -89,6 +89,16 @@ def run_guarded(fn: Callable[[], int | None]) -> None:
     raise typer.Exit(code)
 
 
+def emit(data, as_json: bool, formatter: Callable[[dict], str]) -> None:
+    """Print a stage's section: JSON (machine) or its human formatter."""
+    if as_json:
+        from sms_cli.results import _jsonable
+
+        typer.echo(json.dumps(_jsonable(data), indent=2))
+    else:
+        typer.echo(formatter(data))
+
+
 def default_out(mission_path: Path, out: Path | None) -> Path:
     """Results folder of a mission: ``--out`` or ``results/<mission file stem>``."""
     return out if out is not None else Path("results") / mission_path.stem
@@ -130,12 +140,7 @@ def budget_cmd(
         from sms_cli.orbit.stage import format_budget, run_budget
 
         data = run_budget(load_mission(mission), default_out(mission, out))
-        if as_json:
-            from sms_cli.results import _jsonable
-
-            typer.echo(json.dumps(_jsonable(data), indent=2))
-        else:
-            typer.echo(format_budget(data))
+        emit(data, as_json, format_budget)
         return 0
 
     run_guarded(body)
@@ -156,12 +161,7 @@ def analyze_cmd(
         from sms_cli.mission.load import load_mission
 
         data = run_analysis(load_mission(mission), default_out(mission, out), plots=None if plots else False, progress=progress)
-        if as_json:
-            from sms_cli.results import _jsonable
-
-            typer.echo(json.dumps(_jsonable(data), indent=2))
-        else:
-            typer.echo(format_analysis(data))
+        emit(data, as_json, format_analysis)
         return 0
 
     run_guarded(body)
@@ -181,12 +181,7 @@ def synthesize_cmd(
         from sms_cli.synthesis.stage import format_synthesis, run_synthesis
 
         section = run_synthesis(load_mission(mission), default_out(mission, out), plots=plots)
-        if as_json:
-            from sms_cli.results import _jsonable
-
-            typer.echo(json.dumps(_jsonable(section), indent=2))
-        else:
-            typer.echo(format_synthesis(section))
+        emit(section, as_json, format_synthesis)
         return 0
 
     run_guarded(body)
@@ -213,7 +208,7 @@ def simulate_cmd(
         mcap_path = out if out is not None and out.suffix == ".mcap" else None
         folder = default_out(mission, None if mcap_path else out)
         section = run_simulation(load_mission(mission), folder, mcap_path, progress)
-        typer.echo(json.dumps(section, indent=2) if as_json else format_simulation(section))
+        emit(section, as_json, format_simulation)
         return 0
 
     run_guarded(body)

@@ -47,32 +47,25 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
     files.append(_save(fig, out_dir / "sim_attitude_error.png"))
     plt.close(fig)
 
+    def two_panels(top, bottom, names, top_label, bottom_label, title, filename):
+        fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+        axes[0].plot(t, top, lw=1)
+        axes[0].set(ylabel=top_label, title=title)
+        axes[1].plot(t, bottom, lw=1)
+        axes[1].set(xlabel="time (s)", ylabel=bottom_label)
+        axes[0].legend(names, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        for a in axes:
+            a.grid(alpha=0.3)
+            phases(a)
+        files.append(_save(fig, out_dir / filename))
+        plt.close(fig)
+
     if sm.wheels:
-        names = [w.name for w in sm.wheels]
-        fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-        axes[0].plot(t, trace["wheel_speed"] * 60 / (2 * math.pi), lw=1)
-        axes[0].set(ylabel="wheel speed (rpm)", title="Reaction wheels")
-        axes[1].plot(t, trace["wheel_torque"], lw=1)
-        axes[1].set(xlabel="time (s)", ylabel="motor torque (N m)")
-        axes[0].legend(names, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        for a in axes:
-            a.grid(alpha=0.3)
-            phases(a)
-        files.append(_save(fig, out_dir / "sim_wheels.png"))
-        plt.close(fig)
+        two_panels(trace["wheel_speed"] * 60 / (2 * math.pi), trace["wheel_torque"], [w.name for w in sm.wheels],
+                   "wheel speed (rpm)", "motor torque (N m)", "Reaction wheels", "sim_wheels.png")
     if sm.arm:
-        names = [a.name for a in sm.arm]
-        fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-        axes[0].plot(t, trace["joint_err"], lw=1)
-        axes[0].set(ylabel="tracking error (rad or m)", title="Manipulator joints")
-        axes[1].plot(t, trace["joint_torque"], lw=1)
-        axes[1].set(xlabel="time (s)", ylabel="joint torque (N m or N)")
-        axes[0].legend(names, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        for a in axes:
-            a.grid(alpha=0.3)
-            phases(a)
-        files.append(_save(fig, out_dir / "sim_joints.png"))
-        plt.close(fig)
+        two_panels(trace["joint_err"], trace["joint_torque"], [a.name for a in sm.arm],
+                   "tracking error (rad or m)", "joint torque (N m or N)", "Manipulator joints", "sim_joints.png")
     if sm.n_modes:
         fig, ax = plt.subplots(figsize=(8, 3.2))
         ax.plot(t, trace["modal_peak"], lw=1)
