@@ -112,3 +112,32 @@ def test_diverging_simulation_exits_3_and_keeps_the_recording(tmp_path):
         run = [m for m in reader.iter_metadata() if m.name == "run"][0]
     assert n > 0 and run.metadata["status"] == "diverged"
     assert math.isfinite(sec["t_end_s"])
+
+
+def test_seed003_torque_free_body_rotates_against_the_arm(tmp_path):
+    """Seed 003 R1 (L664-668): with no attitude control, deploying the arm (joint 1 about −y from 180° to
+    0°, i.e. the arm turns by +π about +y) turns the body the other way about y, momentum staying zero."""
+    import numpy as np
+    import pinocchio as pin
+
+    from sms_cli.mission.load import load_mission
+    from sms_cli.model import compile_system
+    from sms_cli.sim.engine import Simulation
+
+    loaded = load_mission(MISSIONS / "astrobee_arm.yaml")
+    sm = compile_system(loaded)
+    sim = Simulation(sm, loaded.mission.simulation, None, False)
+    captured = {}
+    orig = sim._trace
+
+    def keep_last(tr, t, ip, err, arm_ref, s, *rest):
+        captured["q"] = s.q.copy()
+        return orig(tr, t, ip, err, arm_ref, s, *rest)
+
+    sim._trace = keep_last
+    res = sim.run()
+    R = pin.Quaternion(captured["q"][6], *captured["q"][3:6]).toRotationMatrix()
+    rotvec = pin.log3(R)
+    assert rotvec[1] < -0.05  # body pitched about −y
+    assert abs(rotvec[1]) > 10 * max(abs(rotvec[0]), abs(rotvec[2]))
+    assert res.conservation["angular_momentum_drift_abs"] < 1e-12

@@ -100,9 +100,13 @@ def conservation(a: dict[str, np.ndarray], wheel_spin_inertia: np.ndarray | None
     # momentum is only conserved between events that exchange it with the outside (payload
     # attached/released, base held by a support): drift is measured within each such segment
     seg = a["segment"] if a["segment"].size == len(h) else np.zeros(len(h), dtype=int)
+    held = np.all(np.isfinite(a["base_reaction"]), axis=1) if a["base_reaction"].size else np.zeros(len(h), dtype=bool)
     dh = np.zeros(6)
     for k in np.unique(seg):
-        hk = h[seg == k]
+        in_seg = (seg == k) & ~held  # a held base exchanges momentum with its support
+        if not np.any(in_seg):
+            continue
+        hk = h[in_seg]
         dh = np.maximum(dh, np.max(np.abs(hk - hk[0]), axis=0))
     p0, k0 = float(np.linalg.norm(h[0, :3])), float(np.linalg.norm(h[0, 3:]))
     k_int = float(np.max(np.abs(a["wheel_speed"]) @ wheel_spin_inertia)) if (
