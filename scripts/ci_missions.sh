@@ -7,7 +7,7 @@
 #
 # Results go to ${SMS_CI_OUT:-results/ci}/<mission>/, JUnit to ${SMS_CI_OUT:-results/ci}/junit/.
 source "$(dirname "$0")/_env.sh"
-MISSIONS=(hipparcos_geo hipparcos_leo budget_tradeoff demeter_3dof caldera_smallsat astrobee_arm chevallard_chaser caldera_s1_slew caldera_s2_arm caldera_s3_slew_arm astrobee_slew_twisting astrobee_slew_backstepping chevallard_deploy_track basilisk_rw_reference pulsar_simple)
+MISSIONS=(hipparcos_geo hipparcos_leo budget_tradeoff demeter_3dof caldera_smallsat astrobee_arm chevallard_chaser caldera_s1_slew caldera_s1_synthesized caldera_s2_arm caldera_s3_slew_arm astrobee_slew_twisting astrobee_slew_backstepping chevallard_deploy_track basilisk_rw_reference pulsar_simple)
 OUT="${SMS_CI_OUT:-results/ci}"
 UPDATE=0
 [ "${1:-}" = "--update" ] && UPDATE=1

@@ -22,6 +22,31 @@ from sms_cli.sim.schema import PhaseSpec, SimulationSpec
 from sms_cli.sim.sensors import Sensors
 
 
+def attitude_from_gains(results_dir) -> object:
+    """The attitude-law spec `sms synthesize` wrote into <results>/gains.yaml (pd, lqr, smc laws)."""
+    from pathlib import Path
+
+    from pydantic import TypeAdapter, ValidationError
+
+    from sms_cli.errors import InputError, Problem
+    from sms_cli.sim.laws.schema import AttitudeLawSpec
+    from sms_cli.synthesis.gains_io import read_gains
+
+    path = Path(results_dir) / "gains.yaml" if results_dir else None
+    if path is None or not path.exists():
+        raise InputError(problems=[Problem(f"simulation.attitude is 'from_gains' but there is no {path or 'gains.yaml'}",
+                                           field="simulation.attitude",
+                                           hint="run `sms synthesize` on this mission first with the same --out (sms run does)")])
+    block = read_gains(path).simulation.get("attitude")
+    if not block:
+        raise InputError(problems=[Problem(f"{path} has no attitude law (its law is not pd, lqr or smc)",
+                                           field="simulation.attitude", hint="set synthesis.law to pd, lqr or smc")])
+    try:
+        return TypeAdapter(AttitudeLawSpec).validate_python(block)
+    except ValidationError as exc:
+        raise InputError(problems=[Problem(f"{path}: its attitude law does not validate: {exc.errors()[0]['msg']}")]) from None
+
+
 class Diverged(Exception):
     """The plant state became non-finite or exceeded the divergence limits."""
 
@@ -73,7 +98,8 @@ class Simulation:
         self.rec = recorder
         self.sensors = Sensors(sm, spec.sensors)
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
-        self.att_law = build_attitude_law(spec.attitude, sm) if spec.attitude else None
+        att_spec = attitude_from_gains(results_dir) if spec.attitude == "from_gains" else spec.attitude
+        self.att_law = build_attitude_law(att_spec, sm) if att_spec else None
         self.arm_law = build_arm_law(spec.arm, sm) if spec.arm else None
         self.rr = build_resolved_rate(spec.resolved_rate, sm) if spec.resolved_rate else None
         self.ndi = None

@@ -137,7 +137,9 @@ class SimulationSpec(StrictModel):
     dt: Time = Field(0.01, gt=0, description="plant step (s)")
     control_rate: Frequency = Field(10.0, gt=0, description="controller rate (Hz); ZOH between updates")
     record_rate: Frequency | None = Field(20.0, description="MCAP sample rate (Hz); null records every plant step")
-    attitude: AttitudeLawSpec | None = Field(None, description="base attitude law")
+    attitude: AttitudeLawSpec | Literal["from_gains"] | None = Field(
+        None, description="base attitude law, or 'from_gains': the law `sms synthesize` wrote into gains.yaml "
+                          "(simulation.attitude block) in the results folder")
     attitude_actuator: Literal["wheels", "thrusters"] = "wheels"
     arm: ArmLawSpec | None = Field(None, description="manipulator joint law")
     resolved_rate: ResolvedRateSpec | None = Field(None, description="end-effector tracking (phases with end_effector)")

@@ -70,6 +70,23 @@ def region_lmis(cp, N, X, region: PoleRegion, eps: float) -> list:
     return cons
 
 
+def region_blocks(N: np.ndarray, X: np.ndarray, region: PoleRegion, eps: float) -> list[np.ndarray]:
+    """The matrices of ``region_lmis`` as plain numpy, each required ⪰ 0, for stacks of N and X
+    (shape (..., n, n)): −(N + Nᵀ + 2αX) − εI, −[[−rX, N], [Nᵀ, −rX]] − εI and, when ζ_min > 0,
+    −[[s(N + Nᵀ), c(N − Nᵀ)], [c(Nᵀ − N), s(N + Nᵀ)]] − εI."""
+    n = X.shape[-1]
+    Nt = np.swapaxes(N, -1, -2)
+    out = [-(N + Nt + 2 * region.alpha * X) - eps * np.eye(n)]
+    disk = np.block([[-region.radius * X, N], [Nt, -region.radius * X]])
+    out.append(-disk - eps * np.eye(2 * n))
+    if region.zeta_min > 0:
+        theta = math.acos(region.zeta_min)
+        s, c = math.sin(theta), math.cos(theta)
+        cone = np.block([[s * (N + Nt), c * (N - Nt)], [c * (Nt - N), s * (N + Nt)]])
+        out.append(-cone - eps * np.eye(2 * n))
+    return out
+
+
 def _sym(cp, M):
     return (M + M.T) / 2
 

@@ -120,7 +120,7 @@ def _run_lmi(sm, spec, out: Path):
                        "spread": float(lspec.sampling.spread), "rho": [list(r) for r in res.rho]},
         "initial_errors": lspec.initial_errors.model_dump(), "tracking_box": req.tracking[0].tolist(),
         "lmi": {"size": res.lmi_rows, "n_q": req.nominal[0].n_q, "n_e": req.nominal[0].n_e,
-                "n_variables": res.n_variables, "solver": "clarabel", "solver_status": res.status,
+                "n_variables": res.n_variables, "solver": res.solver, "solver_status": res.status,
                 "solve_time_s": res.solve_time, "build_time_s": t_build, "verify_time_s": t_verify},
         "gains": table,
         "observer": {"states": setup.state_names, "outputs": ["w0_x", "w0_y", "w0_z"],
