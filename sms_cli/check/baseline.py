@@ -27,7 +27,7 @@ FORMAT = "sms-baseline/1"
 RULES: list[tuple[str, tuple[float, float] | None]] = [
     (r"^(run|requirements)\b", None),                       # provenance and verdicts, not results
     (r"\.(timing|files|artifacts)\b", None),                 # wall-clock and file names
-    (r"(^|\.)(total|wall|solve|solver)_time(_s)?$", None),   # wall-clock durations outside 'timing'
+    (r"(^|\.)(total|wall|solve|solver|build|verify|compile|setup|elapsed)_time(_s)?$", None),  # wall-clock durations
     (r"^analysis\.variants\.[^.]+\.best\b", None),           # arg-max sample lists (ties reorder)
     (r"^analysis\.(samples|n)$", (0.0, 0.0)),
     (r"\.(dof|nq|nv)\b|\.steps$", (0.0, 0.0)),              # counts are exact
