@@ -29,3 +29,16 @@ def compile_path(path: Path | str):
     from sms_cli.model import compile_system
 
     return compile_system(load_mission(path))
+
+
+def sm_sensed(sm, t, st):
+    """Noise-free measurements of a plant state (what the controllers see), for law tests."""
+    from sms_cli.sim.sensors import Sensors
+    from sms_cli.sim.schema import SensorsSpec
+
+    return Sensors(sm, SensorsSpec()).measure(t, st.q, st.v, st.eta, st.etadot)
+
+
+@pytest.fixture(scope="module")
+def arm3():
+    return compile_path(DATA / "arm3.yaml")

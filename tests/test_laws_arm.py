@@ -17,7 +17,7 @@ from sms_cli.sim.interfaces import ArmRef, Sensed
 from sms_cli.sim.laws.arm import ComputedTorque, ComputedTorqueSMC, JointPD, JointSMC
 from sms_cli.sim.laws.plant_models import ArmDynamics
 
-from conftest import DATA, compile_path
+from conftest import DATA, compile_path, sm_sensed
 
 
 def joint_sensed(t, q, qd):
@@ -27,16 +27,7 @@ def joint_sensed(t, q, qd):
                   wheel_speed=np.zeros(0), q=np.zeros(7 + n), v=np.zeros(6 + n))
 
 
-def sm_sensed(sm, t, st: State) -> Sensed:
-    return Sensed(t=t, quat=st.q[3:7].copy(), omega=st.v[3:6].copy(), position=st.q[:3].copy(), velocity=np.zeros(3),
-                  q_arm=st.q[sm.idx.q_arm].copy(), qd_arm=st.v[sm.idx.arm].copy(),
-                  wheel_speed=st.v[sm.idx.wheels].copy(), q=st.q.copy(), v=st.v.copy(), eta=st.eta.copy(),
-                  etadot=st.etadot.copy())
 
-
-@pytest.fixture(scope="module")
-def arm3():
-    return compile_path(DATA / "arm3.yaml")
 
 
 # ----------------------------------------------------------------------------- seed 001 joint PD

@@ -15,19 +15,10 @@ from sms_cli.sim.laws.arm import ComputedTorque
 from sms_cli.sim.laws.attitude import SlidingModeAttitude, TrackingError
 from sms_cli.sim.laws.plant_models import SystemBody, base_rotation, effective_inertia
 
-from conftest import DATA, MISSIONS, compile_path
+from conftest import DATA, MISSIONS, compile_path, sm_sensed
 
 
-def sm_sensed(sm, t, st: State) -> Sensed:
-    return Sensed(t=t, quat=st.q[3:7].copy(), omega=st.v[3:6].copy(), position=st.q[:3].copy(), velocity=np.zeros(3),
-                  q_arm=st.q[sm.idx.q_arm].copy(), qd_arm=st.v[sm.idx.arm].copy(),
-                  wheel_speed=st.v[sm.idx.wheels].copy(), q=st.q.copy(), v=st.v.copy(), eta=st.eta.copy(),
-                  etadot=st.etadot.copy())
 
-
-@pytest.fixture(scope="module")
-def arm3():
-    return compile_path(DATA / "arm3.yaml")
 
 
 def test_effective_inertia_is_the_centroidal_inertia_minus_wheel_spin(arm3):

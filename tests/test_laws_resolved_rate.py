@@ -14,14 +14,8 @@ from sms_cli.dynamics.integrator import State, rkmk4_step
 from sms_cli.sim.interfaces import EndEffectorRef, Sensed
 from sms_cli.sim.laws.resolved_rate import ResolvedRate, damped_pinv_solve
 
-from conftest import DATA, compile_path
+from conftest import DATA, compile_path, sm_sensed
 
-
-def sm_sensed(sm, t, st: State) -> Sensed:
-    return Sensed(t=t, quat=st.q[3:7].copy(), omega=st.v[3:6].copy(), position=st.q[:3].copy(), velocity=np.zeros(3),
-                  q_arm=st.q[sm.idx.q_arm].copy(), qd_arm=st.v[sm.idx.arm].copy(),
-                  wheel_speed=st.v[sm.idx.wheels].copy(), q=st.q.copy(), v=st.v.copy(), eta=st.eta.copy(),
-                  etadot=st.etadot.copy())
 
 
 @pytest.fixture(scope="module")
