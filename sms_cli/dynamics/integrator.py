@@ -81,27 +81,29 @@ def rkmk4_step(model: pin.Model, state: State, dt: float, accel: Accel) -> State
         theta = (dt / 6.0) * (v0 + 2.0 * (k2 + k3) + k4)
         return State(integrate(model, q0, theta), v0 + (dt / 6.0) * (a1 + 2.0 * (a2 + a3) + a4), e0, ed0)
 
-    a1, b1 = accel(q0, v0, e0, ed0)
+    # with modes: stage arithmetic on the packed vector y = [v; η; η̇] (fewer small numpy operations)
+    nv, ne = v0.size, e0.size
+    iv, ie, ied = slice(0, nv), slice(nv, nv + ne), slice(nv + ne, nv + 2 * ne)
+    y0 = np.concatenate([v0, e0, ed0])
+
+    def slope(q, y):
+        a, b = accel(q, y[iv], y[ie], y[ied])
+        return np.concatenate([a, y[ied], b])
+
+    d1 = slope(q0, y0)
     th = h * v0
-    v2, e2, ed2 = v0 + h * a1, e0 + h * ed0, ed0 + h * b1
-    a2, b2 = accel(integrate(model, q0, th), v2, e2, ed2)
-    k2 = _dexpinv_neg(th, v2)
-
+    y2 = y0 + h * d1
+    d2 = slope(integrate(model, q0, th), y2)
+    k2 = _dexpinv_neg(th, y2[iv])
     th = h * k2
-    v3, e3, ed3 = v0 + h * a2, e0 + h * ed2, ed0 + h * b2
-    a3, b3 = accel(integrate(model, q0, th), v3, e3, ed3)
-    k3 = _dexpinv_neg(th, v3)
-
+    y3 = y0 + h * d2
+    d3 = slope(integrate(model, q0, th), y3)
+    k3 = _dexpinv_neg(th, y3[iv])
     th = dt * k3
-    v4, e4, ed4 = v0 + dt * a3, e0 + dt * ed3, ed0 + dt * b3
-    a4, b4 = accel(integrate(model, q0, th), v4, e4, ed4)
-    k4 = _dexpinv_neg(th, v4)
-
+    y4 = y0 + dt * d3
+    d4 = slope(integrate(model, q0, th), y4)
+    k4 = _dexpinv_neg(th, y4[iv])
     c = dt / 6.0
     theta = c * (v0 + 2.0 * (k2 + k3) + k4)
-    return State(
-        integrate(model, q0, theta),
-        v0 + c * (a1 + 2.0 * (a2 + a3) + a4),
-        e0 + c * (ed0 + 2.0 * (ed2 + ed3) + ed4),
-        ed0 + c * (b1 + 2.0 * (b2 + b3) + b4),
-    )
+    y1 = y0 + c * (d1 + 2.0 * (d2 + d3) + d4)
+    return State(integrate(model, q0, theta), y1[iv], y1[ie], y1[ied])

@@ -55,13 +55,19 @@ class NdiObserver:
         self.T = float(period)
         self.x_hat = np.zeros(n_e)
         self.u = np.concatenate([self.ix.base_linear, self.ix.base_angular, self.ix.flexible])
+        self.a = self.ix.actuators
         self.wheel_limit = np.array([w.max_torque for w in sm.wheels])
         self.refresh = 0.01
+        a, u, w = self.a, self.u, self.ix.base_angular
+        self._ix_au, self._ix_uu, self._ix_ua, self._ix_aa = np.ix_(a, u), np.ix_(u, u), np.ix_(u, a), np.ix_(a, a)
+        self._ix_wr, self._ix_ww = np.ix_(w, a[: self.n_r]), np.ix_(w, w)
+        self._wheel_pinv = None
+        if any(sm.model.parents[wh.joint_id] != sm.base_joint_id for wh in sm.wheels):
+            raise ValueError("the NDI law needs the reaction wheels mounted on the base body")
         self._disc = None
         self._disc_q = None
         self._q_act_idx = np.array([a.q_index for a in sm.arm], dtype=int)
         self.saturated = False
-        self.a = self.ix.actuators
         self._started = False
 
     def reset(self) -> None:
@@ -135,10 +141,10 @@ class NdiObserver:
         r = sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat)
         # passive spring joints are flexible coordinates: their positions are estimated too
         u, a = self.u, self.a
-        Mau = M[np.ix_(a, u)]
-        Muu_inv_Mua = np.linalg.solve(M[np.ix_(u, u)], M[np.ix_(u, a)])
-        M_dia = M[np.ix_(a, a)] - Mau @ Muu_inv_Mua
-        n_term = r[a] - Mau @ np.linalg.solve(M[np.ix_(u, u)], r[u])
+        Mau = M[self._ix_au]
+        sol = np.linalg.solve(M[self._ix_uu], np.column_stack([M[self._ix_ua], r[u]]))
+        M_dia = M[self._ix_aa] - Mau @ sol[:, :-1]
+        n_term = r[a] - Mau @ sol[:, -1]
         # commands
         v_cmd = np.zeros(len(a))
         if self.n_m:
@@ -149,9 +155,9 @@ class NdiObserver:
             theta = attitude_error(att_ref.quat, s.quat)
             R_rb = _rot(quat_mul(quat_conj(s.quat), att_ref.quat))  # base ← reference
             w_des = R_rb @ att_ref.omega - self.k_att * theta
-            w = self.ix.base_angular
-            r_idx = a[: self.n_r]
-            dq_r = -np.linalg.pinv(M[np.ix_(w, r_idx)]) @ (M[np.ix_(w, w)] @ (w_des - s.omega))
+            if self._wheel_pinv is None:  # wheels ride on the base: M_ωr = [I_s a_i] is constant
+                self._wheel_pinv = np.linalg.pinv(M[self._ix_wr])
+            dq_r = -self._wheel_pinv @ (M[self._ix_ww] @ (w_des - s.omega))
             v_cmd[: self.n_r] = self.kv[: self.n_r] * dq_r
         self._M, self._y, self._q_act = M, s.omega, s.q[self._q_act_idx]
         return self._saturation_aware(M_dia, n_term, v_cmd)
