@@ -79,7 +79,7 @@ RUN_STATUSES = ("completed", "diverged", "interrupted", "failed")
 
 _TOPIC_RE = re.compile(r"^(/[A-Za-z0-9_]+)+$")
 _SEP = b"\x00"  # never inside JSON text (control characters are escaped in strings)
-_TS_MARK = b"\x01"  # placeholder for the timestamp object inside /tf templates
+_TS_MARK = b"\x01"  # marker where the timestamp object goes inside /tf templates
 _NUM = b"%.12g"
 _NANO = b"%de-9"  # a pose number as an integer count of 1e-9 (valid JSON: 1234567890e-9 = 1.23456789)
 _NANO_LIMIT = 9.0e9  # |value| below which value·1e9 fits an int64
