@@ -78,12 +78,27 @@ def _suggest(bad: str, candidates: list[str]) -> str:
     return "valid keys here: " + ", ".join(sorted(candidates))
 
 
+_UNION_MARKERS = ("function-", "tagged-union[", "literal[", "union[", "nullable[")
+
+
+def _clean_loc(loc) -> tuple:
+    """Error location without pydantic's union/validator markers (the mission-file path only)."""
+    return tuple(p for p in loc if not (isinstance(p, str) and p.startswith(_UNION_MARKERS))
+                 and not (isinstance(p, str) and p.endswith("Spec")))
+
+
 def validation_problems(exc: ValidationError, root: type[BaseModel], smap: SourceMap,
                         prefix: tuple[Any, ...] = ()) -> list[Problem]:
     """Turn pydantic errors into located problems with fixes."""
     problems: list[Problem] = []
-    for err in exc.errors():
-        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+    errors = exc.errors()
+    # a union field (a law spec or a keyword such as 'from_gains') reports one error per branch:
+    # when a branch recognised the input's tag, the other branches' complaints are noise
+    tagged = {_clean_loc(e["loc"]) for e in errors if "tagged-union[" in "".join(map(str, e["loc"]))}
+    for err in errors:
+        loc = _clean_loc(err["loc"])
+        if err["type"] == "literal_error" and loc in tagged:
+            continue
         full = prefix + loc
         dotted = ".".join(str(p) for p in full) or "(top level)"
         kind = err["type"]
