@@ -211,6 +211,11 @@ class Simulation:
         status, why = "completed", ""
         phase_spans: list[tuple[int, float, float]] = []
         wall0 = time.perf_counter()
+        if self.rec is not None and self.rec.due(t):  # the initial state is part of the recording
+            n_arm = len(q_arm_ref)
+            self._record(t, s, AttitudeProfile(q_att_ref, None, "step", None).at(0.0),
+                         ArmRef(q_arm_ref.copy(), np.zeros(n_arm), np.zeros(n_arm)), np.zeros(self.wheels.n),
+                         np.zeros(n_arm), np.zeros(3))
         try:
             for ip, phase in enumerate(spec.phases):
                 t_phase0 = t
@@ -298,6 +303,7 @@ class Simulation:
         return self._result(status, why, t, steps, trace, phase_spans, wall)
 
     def _begin_phase(self, phase: PhaseSpec, t: float) -> None:
+        self._mom_t = None  # attaching or releasing a payload changes the momentum at the same t
         if phase.attach or phase.detach or phase.base_mode == "fixed" or self._fixed:
             self._segment += 1
         for name in phase.detach:
