@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from sms_cli.sim.laws.switching import check_smoothing
 from sms_cli.sim.interfaces import ArmRef, Sensed
 from sms_cli.sim.laws.plant_models import ArmDynamics
 
@@ -56,9 +57,7 @@ class JointSMC:
 
     def __init__(self, k, lam, eta=1.0, smoothing: str = "tanh", wrap=None):
         self.k, self.lam, self.eta = (np.asarray(x, dtype=float) for x in (k, lam, eta))
-        if smoothing not in ("tanh", "sign"):
-            raise ValueError("smoothing is 'tanh' or 'sign'")
-        self.smoothing = smoothing
+        self.smoothing = check_smoothing(smoothing)
         self.wrap = _mask(wrap)
 
     def reset(self) -> None:
@@ -115,9 +114,7 @@ class ComputedTorqueSMC:
         if np.any(disc < -1e-12 * np.maximum(self.k1**2, 1e-300)) or np.any(self.k1 <= 0) or np.any(self.k2 < 0):
             raise ValueError("k1 > 0, k2 ≥ 0 and k1² ≥ 4 k2 (critically damped or overdamped) are required")
         self.lam = 0.5 * (self.k1 - np.sqrt(np.maximum(disc, 0.0)))
-        if smoothing not in ("tanh", "sign"):
-            raise ValueError("smoothing is 'tanh' or 'sign'")
-        self.smoothing = smoothing
+        self.smoothing = check_smoothing(smoothing)
         self.wrap = _mask(wrap)
 
     def reset(self) -> None:

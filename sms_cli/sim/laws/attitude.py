@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from sms_cli.sim.laws.switching import check_smoothing
 from sms_cli.sim.interfaces import AttitudeRef, Sensed
 from sms_cli.sim.laws.plant_models import RigidBody, base_rotation
 
@@ -248,9 +249,7 @@ class SlidingModeAttitude:
 
     def __init__(self, k, c, mu, body, smoothing: str = "tanh", momentum: bool = True):
         self.k, self.c, self.mu = _gain(k), _gain(c), _gain(mu)
-        if smoothing not in ("tanh", "sign"):
-            raise ValueError("smoothing is 'tanh' or 'sign'")
-        self.smoothing = smoothing
+        self.smoothing = check_smoothing(smoothing)
         self.body = body
         self.momentum = momentum
 
@@ -286,9 +285,7 @@ class TwistingAttitude:
 
     def __init__(self, k1, k2, lam, eta=1.0, smoothing: str = "tanh", filter_time: float = 0.0):
         self.k1, self.k2, self.lam, self.eta = _gain(k1), _gain(k2), _gain(lam), _gain(eta)
-        if smoothing not in ("tanh", "sign"):
-            raise ValueError("smoothing is 'tanh' or 'sign'")
-        self.smoothing = smoothing
+        self.smoothing = check_smoothing(smoothing)
         self.filter_time = float(filter_time)
         self.reset()
 
