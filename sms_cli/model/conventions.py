@@ -66,3 +66,16 @@ def quaternion_xyzw_from_matrix(R: np.ndarray) -> np.ndarray:
     quat = pin.Quaternion(R).normalized()
     c = np.array([quat.x, quat.y, quat.z, quat.w])
     return -c if c[3] < 0 else c
+
+
+def euler_zyx_from_quaternions(quat: np.ndarray) -> np.ndarray:
+    """[roll, pitch, yaw] (rad) of unit quaternions [x, y, z, w] (…, 4) → (…, 3), vectorised.
+    Equals ``matrix_to_euler_zyx`` away from gimbal lock (|pitch| = π/2), where any split of
+    roll and yaw is valid and this one follows atan2 continuously."""
+    x, y, z, w = (quat[..., i] for i in range(4))
+    r00 = 1.0 - 2.0 * (y * y + z * z)
+    r10 = 2.0 * (x * y + z * w)
+    r20 = 2.0 * (x * z - y * w)
+    r21 = 2.0 * (y * z + x * w)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
+    return np.stack([np.arctan2(r21, r22), np.arctan2(-r20, np.hypot(r00, r10)), np.arctan2(r10, r00)], axis=-1)

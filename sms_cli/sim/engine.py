@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -19,6 +18,7 @@ from sms_cli.sim.interfaces import ArmRef, EndEffectorRef
 from sms_cli.sim.metrics import Trace, conservation, summarize
 from sms_cli.sim.references import AttitudeProfile, JointProfile
 from sms_cli.sim.schema import PhaseSpec, SimulationSpec
+from sms_cli.sim.topics import numeric_topics
 from sms_cli.sim.sensors import Sensors
 
 
@@ -96,9 +96,10 @@ class Simulation:
         self.sm = sm
         self.spec = spec
         self.rec = recorder
+        self._progress_flag = progress
         self.sensors = Sensors(sm, spec.sensors)
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
-        att_spec = attitude_from_gains(results_dir) if spec.attitude == "from_gains" else spec.attitude
+        att_spec = self.att_spec = attitude_from_gains(results_dir) if spec.attitude == "from_gains" else spec.attitude
         self.att_law = build_attitude_law(att_spec, sm) if att_spec else None
         self.arm_law = build_arm_law(spec.arm, sm) if spec.arm else None
         self.rr = build_resolved_rate(spec.resolved_rate, sm) if spec.resolved_rate else None
@@ -168,38 +169,43 @@ class Simulation:
             M = d.oMf[fid]
             poses[i, :3] = M.translation
             poses[i, 3:] = pin.Quaternion(M.rotation).coeffs()
-        rpy = pin.rpy.matrixToRpy(d.oMf[self.sm.base_frame_id].rotation)
         p, k, _ = self._momentum(t, s)
-        ee = d.oMf[self.sm.ee_frame_id].translation
-        scalars = {
-            "/attitude": {"qx": s.q[3], "qy": s.q[4], "qz": s.q[5], "qw": s.q[6],
-                          "roll_deg": math.degrees(rpy[0]), "pitch_deg": math.degrees(rpy[1]), "yaw_deg": math.degrees(rpy[2])},
-            "/attitude/error": {"angle_deg": math.degrees(float(np.linalg.norm(att_err_vec))), "rotvec": att_err_vec},
-            "/attitude/reference": {"qx": att_ref.quat[0], "qy": att_ref.quat[1], "qz": att_ref.quat[2], "qw": att_ref.quat[3]},
-            "/base/rate": {"x": s.v[3], "y": s.v[4], "z": s.v[5]},
-            "/base/position": {"x": s.q[0], "y": s.q[1], "z": s.q[2]},
-            "/ee/position": {"x": ee[0], "y": ee[1], "z": ee[2]},
-            "/momentum": {"px": p[0], "py": p[1], "pz": p[2], "kx": k[0], "ky": k[1], "kz": k[2]},
-        }
-        if self.sm.wheels:
-            names = [w.name for w in self.sm.wheels]
-            scalars["/wheels/speed"] = dict(zip(names, s.v[self.sm.idx.wheels]))
-            scalars["/wheels/torque"] = dict(zip(names, tau_w))
-        if self.sm.arm:
-            scalars["/joints/position"] = dict(zip(self.arm_names, s.q[[a.q_index for a in self.sm.arm]]))
-            scalars["/joints/rate"] = dict(zip(self.arm_names, s.v[self.sm.idx.arm]))
-            scalars["/joints/torque"] = dict(zip(self.arm_names, tau_m))
-            scalars["/joints/reference"] = dict(zip(self.arm_names, arm_ref.q))
-        if self.sm.n_modes:
-            scalars["/modes/eta"] = {"eta": s.eta}
+        reaction = None
         if self._fixed:
             vd, ed = self.sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, self._tau)
-            w = self.sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
-            scalars["/base/reaction"] = {"fx": w[0], "fy": w[1], "fz": w[2], "nx": w[3], "ny": w[4], "nz": w[5]}
+            reaction = self.sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
+        scalars = numeric_topics(self.sm, q=s.q, v=s.v, wheel_torque=np.asarray(tau_w, float), ref_quat=att_ref.quat,
+                                 err_vec=att_err_vec, momentum_p=p, momentum_k=k,
+                                 ee=d.oMf[self.sm.ee_frame_id].translation, joint_torque=np.asarray(tau_m, float),
+                                 joint_ref=arm_ref.q, eta=s.eta, base_reaction=reaction)
         rec.write_step(t, transforms=poses, scalars=scalars)
 
-    # ------------------------------------------------------------------ main loop
+    # ------------------------------------------------------------------ engines
+    def compiled_unsupported(self) -> str | None:
+        """Why the compiled engine cannot run this mission (None: it can)."""
+        from sms_cli.sim.compiled.runner import unsupported_reason
+
+        return unsupported_reason(self.sm, self.spec, self.att_spec)
+
     def run(self) -> SimResult:
+        """Run the mission with the engine ``simulation.engine`` asks for (see SimulationSpec)."""
+        from sms_cli.errors import InputError, Problem
+
+        if self.spec.engine != "python":
+            why = self.compiled_unsupported()
+            if why is None:
+                from sms_cli.sim.compiled.runner import CompiledSimulation
+
+                return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
+            if self.spec.engine == "compiled":
+                raise InputError(problems=[Problem(f"the compiled engine cannot run this mission: {why}",
+                                                   field="simulation.engine",
+                                                   hint="write engine: auto (the Python loop runs it) or python")])
+        return self.run_python()
+
+    # ------------------------------------------------------------------ main loop
+    def run_python(self) -> SimResult:
+        """The reference loop in Python (every feature)."""
         sm, spec = self.sm, self.spec
         s = State(sm.q0.copy(), sm.v0.copy(), sm.eta0.copy(), sm.etadot0.copy())
         trace = Trace()
@@ -311,8 +317,7 @@ class Simulation:
         for name in phase.attach:
             self.sm.attach_payload(name)
         if self.rec is not None:
-            self.rec.write_event(t, "phase", {"name": phase.name, "kind": phase.kind, "base_mode": phase.base_mode,
-                                              "attach": phase.attach, "detach": phase.detach})
+            self.rec.write_event(t, "phase", phase_event(phase))
 
     def _control(self, phase: PhaseSpec, s, att_ref, arm_ref):
         """Controller outputs held over the control period: wheel torques, joint torques, base wrench."""
@@ -367,17 +372,28 @@ class Simulation:
             tr.base_reaction.append(np.full(6, np.nan))
 
     def _result(self, status, why, t, steps, trace: Trace, spans, wall) -> SimResult:
-        a = trace.arrays()
-        band = self.spec.settle_tolerance
-        dtc = 1.0 / self.spec.control_rate
-        phases = []
-        for ip, t0, t1 in spans:
-            mask = a["phase"] == ip
-            summary = summarize(a, mask, band, dtc) if np.any(mask) else {}
-            summary.update({"name": self.spec.phases[ip].name, "kind": self.spec.phases[ip].kind, "duration_s": t1 - t0})
-            phases.append(summary)
-        overall = summarize(a, np.ones(a["t"].size, dtype=bool), band, dtc) if a["t"].size else {}
-        timing = {"wall_s": wall, "sim_s": t, "steps": steps, "us_per_step": 1e6 * wall / max(steps, 1),
-                  "real_time_factor": t / wall if wall > 0 else None}
-        return SimResult(status, t, steps, phases, overall, conservation(a, np.array([w.spin_inertia for w in self.sm.wheels])),
-                         why, timing, a)
+        return build_result(self.spec, self.sm, status, why, t, steps, trace.arrays(), spans, wall)
+
+
+def phase_event(phase: PhaseSpec) -> dict:
+    """Detail of the /events "phase" event at a phase start."""
+    return {"name": phase.name, "kind": phase.kind, "base_mode": phase.base_mode, "attach": phase.attach,
+            "detach": phase.detach}
+
+
+def build_result(spec: SimulationSpec, sm: SystemModel, status, why, t, steps, a: dict, spans, wall,
+                 engine: str = "python") -> SimResult:
+    """Metrics per phase and overall from the per-tick trace arrays ``a`` (``Trace.arrays()``)."""
+    band = spec.settle_tolerance
+    dtc = 1.0 / spec.control_rate
+    phases = []
+    for ip, t0, t1 in spans:
+        mask = a["phase"] == ip
+        summary = summarize(a, mask, band, dtc) if np.any(mask) else {}
+        summary.update({"name": spec.phases[ip].name, "kind": spec.phases[ip].kind, "duration_s": t1 - t0})
+        phases.append(summary)
+    overall = summarize(a, np.ones(a["t"].size, dtype=bool), band, dtc) if a["t"].size else {}
+    timing = {"engine": engine, "wall_s": wall, "sim_s": t, "steps": steps, "us_per_step": 1e6 * wall / max(steps, 1),
+              "real_time_factor": t / wall if wall > 0 else None}
+    return SimResult(status, t, steps, phases, overall, conservation(a, np.array([w.spin_inertia for w in sm.wheels])),
+                     why, timing, a)

@@ -98,6 +98,10 @@ class RelativePoses:
         self._ext = np.zeros((n + 1, 7))
         self._ext[n, 6] = 1.0  # the world frame: identity pose
 
+    @property
+    def parents(self) -> list[int]:
+        return list(self._parents)
+
     def __call__(self, world: np.ndarray) -> np.ndarray:
         n = self.n
         if self._python:

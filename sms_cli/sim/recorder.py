@@ -67,6 +67,7 @@ import numpy as np
 from sms_cli import __version__
 from sms_cli.sim import foxglove_schemas as fs
 from sms_cli.sim.frames import RelativePoses
+from sms_cli.sim.mcap_block import Templates, encode_records
 from sms_cli.sim.mcap_writer import MESSAGE_FIXED, MESSAGE_HEADER, ChunkedMcapWriter, available_compression
 
 TOPIC_TF = "/tf"
@@ -228,6 +229,7 @@ class McapRecorder:
         self._topic_fields: dict[str, list[tuple[str, int]]] = {}
         self._topic_channels: dict[str, int] = {}
         self._plans: dict[tuple, _ScalarPlan] = {}
+        self._block_templates: dict[tuple, tuple] = {}
 
         # Ctrl-C deferral
         self._busy = False
@@ -461,12 +463,176 @@ class McapRecorder:
             self._last_ts = ts
             if self._t0 is None:
                 self._t0 = t
-            if self._period:
-                k = math.floor((t - self._t0) / self._period + _PERIOD_TOL) + 1
-                self._next_t = self._t0 + (k - _PERIOD_TOL) * self._period
+            self._next_t = self._next_due(t, self._t0)
         finally:
             self._end_busy()
         return True
+
+    def _next_due(self, t: float, t0: float) -> float:
+        """The earliest time of the sample after one recorded at t (t0: the first sample's time)."""
+        if not self._period:
+            return -math.inf
+        k = math.floor((t - t0) / self._period + _PERIOD_TOL) + 1
+        return t0 + (k - _PERIOD_TOL) * self._period
+
+    # ------------------------------------------------------------------ blocks (compiled engine)
+    def select(self, times: np.ndarray) -> np.ndarray:
+        """Offer successive times at once: the indices of those ``write_step`` would record, one
+        call each (counted as offered, as ``write_step`` counts its calls). Record them with
+        ``write_block``; the decimation state advances there."""
+        times = np.asarray(times, dtype=float)
+        if times.size == 0:
+            return np.zeros(0, dtype=np.intp)
+        self._calls += times.size
+        self._t_seen = float(times[-1])
+        if not self._period:
+            return np.nonzero(times >= self._next_t)[0]
+        picked = []
+        nxt, t0, i = self._next_t, self._t0, 0
+        while True:
+            i = max(i, int(np.searchsorted(times, nxt, side="left")))  # first offer with t ≥ the next due time
+            if i >= times.size:
+                break
+            picked.append(i)
+            t0 = float(times[i]) if t0 is None else t0
+            nxt = self._next_due(float(times[i]), t0)
+            i += 1
+        return np.array(picked, dtype=np.intp)
+
+    def write_block(self, times: np.ndarray, *, transforms: np.ndarray | None = None,
+                    scalars: Mapping[str, Mapping[str, Any]] | None = None, relative: bool = False) -> None:
+        """Record n samples at once (the rows ``select`` picked): ``times`` (n,) increasing,
+        ``transforms`` (n, n_links, 7) world poses (``relative``: already each link's pose in its
+        parent, as /tf carries them), ``scalars`` topic → {field: (n,) or (n, k)}.
+        The same messages as n ``write_step(..., force=True)`` calls, encoded and framed in one
+        compiled pass (``mcap_block``); a block with a non-finite or huge pose falls back to
+        those calls."""
+        times = np.asarray(times, dtype=float)
+        n = times.size
+        if n == 0:
+            return
+        if self.finished:
+            raise RuntimeError("recorder: write_block after finish()")
+        ts = np.rint(times * 1e9).astype(np.int64)
+        if not (np.all(np.isfinite(times)) and ts[0] >= 0 and np.all(np.diff(ts) > 0)):
+            raise ValueError("recorder: block times must be finite, ≥ 0 and strictly increasing")
+        if ts[0] <= self._last_ts:
+            raise ValueError(f"recorder: time went backwards: block from {times[0]!r} s after a sample at {self._last_ts / 1e9!r} s")
+        if self._w is None:
+            self._ensure_open()
+        columns = []  # one row of numbers per sample, in template order
+        n_tf = 0
+        if transforms is not None:
+            rel = self._block_poses(transforms, n, relative)
+            scaled = rel * 1e9
+            if not (-_NANO_LIMIT * 1e9 < scaled.min() and scaled.max() < _NANO_LIMIT * 1e9):  # False for NaN
+                return self._write_rows(times, rel if self._tf_rel is None or relative else transforms, scalars,
+                                        relative)
+            n_tf = len(self._links)
+            sec, nsec = np.divmod(ts, 1_000_000_000)
+            stamp = np.broadcast_to(np.stack([sec, nsec], axis=1)[:, None, :].astype(float), (n, n_tf, 2))
+            columns.append(np.concatenate([stamp, scaled.reshape(n, n_tf, 7)], axis=2).reshape(n, -1))
+        plan = None
+        if scalars:
+            first = {topic: {name: np.asarray(val)[0] for name, val in fields.items()} for topic, fields in scalars.items()}
+            plan = self._plans.get(tuple(first))
+            if plan is None:
+                self._busy = True
+                try:
+                    plan = self._plan(first)
+                finally:
+                    self._end_busy()
+            columns.append(self._block_values(plan, scalars, n))
+        key = (n_tf, tuple(plan.topics) if plan is not None else ())
+        tpl = self._block_templates.get(key)
+        if tpl is None:
+            stamp_tpl = b'{"sec":%d,"nsec":%d}'
+            texts = [piece.replace(_TS_MARK, stamp_tpl) for piece in self._tf_template.split(_SEP)] if n_tf else []
+            texts += plan.template.split(_SEP) if plan is not None else []
+            tpl = self._block_templates[key] = (Templates(texts), np.array(
+                [self._tf_channel] * n_tf + (list(plan.channels) if plan is not None else []), dtype=np.int64))
+        templates, channels = tpl
+        values = np.ascontiguousarray(np.hstack(columns), dtype=float)
+        out = np.empty(templates.capacity(n), dtype=np.uint8)
+        offsets = np.empty(n * templates.n_messages, dtype=np.int64)
+        self._busy = True
+        try:
+            if not self._started:
+                self._start(int(ts[0]))
+            end = encode_records(templates.lit, templates.lit_start, templates.lit_len, templates.code,
+                                 templates.piece_start, values, channels, self._samples, ts, out, offsets)
+            self._append_records(out, end, offsets, np.repeat(ts, templates.n_messages), np.tile(channels, n))
+            self._samples += n
+            self._last_ts = int(ts[-1])
+            if self._t0 is None:
+                self._t0 = float(times[0])
+            self._next_t = self._next_due(float(times[-1]), self._t0)
+        finally:
+            self._end_busy()
+
+    def _write_rows(self, times, transforms, scalars, relative: bool) -> None:
+        """The per-sample path for a block (non-finite or huge poses need its slow encoding)."""
+        tf_rel = self._tf_rel
+        if relative:
+            self._tf_rel = None  # the rows are parent-relative already
+        try:
+            for i, t in enumerate(times):
+                row = {topic: {name: np.asarray(val)[i] for name, val in fields.items()}
+                       for topic, fields in (scalars or {}).items()}
+                self._record(float(t), None if transforms is None else np.asarray(transforms)[i], row or None)
+        finally:
+            self._tf_rel = tf_rel
+
+    def _append_records(self, out: np.ndarray, end: int, offsets: np.ndarray, msg_ts: np.ndarray,
+                        msg_channel: np.ndarray) -> None:
+        """Move framed records into chunks (flushing full ones) and extend the message indexes."""
+        w = self._w
+        rec_end = np.append(offsets[1:], end)
+        total = offsets.size
+        i = 0
+        while i < total:
+            buf = w.chunk_buffer()
+            room = max(w.chunk_size - len(buf), 1)
+            j = min(int(np.searchsorted(rec_end, offsets[i] + room, side="left")) + 1, total)
+            base = len(buf) - int(offsets[i])
+            buf += out[offsets[i]:rec_end[j - 1]].data
+            chans = msg_channel[i:j]
+            for cid in np.unique(chans).tolist():
+                sel = np.nonzero(chans == cid)[0] + i
+                w.channel_index(cid).extend(np.column_stack([msg_ts[sel], offsets[sel] + base]).ravel().tolist())
+            if len(buf) >= w.chunk_size:
+                w.flush_chunk()
+            i = j
+
+    def _block_poses(self, transforms, n: int, relative: bool) -> np.ndarray:
+        """Parent-relative poses (n, n_links, 7) of a block of world (or, ``relative``, already relative) poses."""
+        if self._links is None:
+            raise ValueError("recorder: transforms given but add_transform_tree was not called")
+        world = np.asarray(transforms, dtype=float)
+        nl = len(self._links)
+        if world.shape != (n, nl, 7):
+            raise ValueError(f"recorder: block transforms must have shape ({n}, {nl}, 7), got {world.shape}")
+        if self._tf_rel is None or relative:
+            return world
+        parents = self._tf_rel.parents
+        tiled = (np.array(parents)[None, :] + nl * np.arange(n)[:, None])
+        tiled[:, np.array(parents) < 0] = -1
+        return RelativePoses(tiled.ravel().tolist(), python_below=0)(world.reshape(n * nl, 7)).reshape(n, nl, 7)
+
+    def _block_values(self, plan: _ScalarPlan, scalars, n: int) -> np.ndarray:
+        """The numeric topics' values (n, n_values) in the plan's template order."""
+        cols = []
+        for topic, spec in plan.rows:
+            fields = scalars[topic]
+            if len(fields) != len(spec) or any(name not in fields for name, _ in spec):
+                raise ValueError(f"recorder: the fields of {topic} changed: first {spec}, now {sorted(fields)}")
+            for name, k in spec:
+                col = np.asarray(fields[name], dtype=float)
+                want = (n,) if k == 0 else (n, k)
+                if col.shape != want:
+                    raise ValueError(f"recorder: block field {topic}.{name} must have shape {want}, got {col.shape}")
+                cols.append(col.reshape(n, -1))
+        return np.hstack(cols)
 
     def _encode_tf(self, ts: int, transforms) -> list[bytes]:
         if self._links is None:

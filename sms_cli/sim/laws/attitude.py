@@ -168,68 +168,25 @@ class MrpFeedback:
         self.law_type = control_law_type
         self.body = RigidBody(inertia, wheel_axes, wheel_spin)
         self.L = np.asarray(known_torque, dtype=float)
-        self._I = [[float(x) for x in row] for row in self.body.J]
-        self._L = [float(x) for x in self.L]
-        self._wheels = [(float(g[0]), float(g[1]), float(g[2]), float(js))
-                        for g, js in zip(self.body.G.T, self.body.Js)]
-        self._nw = len(self._wheels)
         self.reset()
 
     def reset(self) -> None:
-        self.prior_time = 0.0
-        self.int_sigma = [0.0, 0.0, 0.0]
+        self.memory = np.zeros(4)  # [prior_time, K∫σ dt (3)], as the compiled law keeps it
+
+    @property
+    def prior_time(self) -> float:
+        return float(self.memory[0])
 
     def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
-        # Scalar arithmetic on purpose: this law runs every plant step of the Basilisk bench.
+        from sms_cli.sim.compiled.control import mrp_feedback
+
         e = TrackingError(s, ref)
-        qx, qy, qz, qw = _floats(e.q)
-        d = 1.0 + qw
-        sg = (qx / d, qy / d, qz / d)
-        w0, w1, w2 = _floats(s.omega)
-        dw0, dw1, dw2 = _floats(e.dw)
-        r0, r1, r2 = _floats(e.omega_r)
-        a0, a1, a2 = _floats(e.domega_r)
-        t = float(s.t)
-        dt = 0.0 if self.prior_time == 0.0 else t - self.prior_time
-        self.prior_time = t
-        I = self._I
-        K, P, Ki = self.K, self.P, self.Ki
-        z0 = z1 = z2 = 0.0
-        if Ki > 0:
-            lim = self.integral_limit
-            ints = self.int_sigma
-            for i in range(3):
-                v = ints[i] + K * dt * sg[i]
-                ints[i] = v if abs(v) <= lim else math.copysign(lim, v)
-            z0 = ints[0] + I[0][0] * dw0 + I[0][1] * dw1 + I[0][2] * dw2
-            z1 = ints[1] + I[1][0] * dw0 + I[1][1] * dw1 + I[1][2] * dw2
-            z2 = ints[2] + I[2][0] * dw0 + I[2][1] * dw1 + I[2][2] * dw2
-        PKi = P * Ki
-        L0 = K * sg[0] + P * dw0 + PKi * z0
-        L1 = K * sg[1] + P * dw1 + PKi * z1
-        L2 = K * sg[2] + P * dw2 + PKi * z2
-        H0 = I[0][0] * w0 + I[0][1] * w1 + I[0][2] * w2
-        H1 = I[1][0] * w0 + I[1][1] * w1 + I[1][2] * w2
-        H2 = I[2][0] * w0 + I[2][1] * w1 + I[2][2] * w2
-        if self._nw:
-            Om = _floats(s.wheel_speed)
-            for i, (g0, g1, g2, js) in enumerate(self._wheels):
-                hs = js * (g0 * w0 + g1 * w1 + g2 * w2 + Om[i])
-                H0 += hs * g0
-                H1 += hs * g1
-                H2 += hs * g2
-        if self.law_type == 0:
-            v0, v1, v2 = r0 + Ki * z0, r1 + Ki * z1, r2 + Ki * z2
-        else:
-            v0, v1, v2 = w0, w1, w2
-        L0 -= v1 * H2 - v2 * H1
-        L1 -= v2 * H0 - v0 * H2
-        L2 -= v0 * H1 - v1 * H0
-        c0, c1, c2 = w1 * r2 - w2 * r1 - a0, w2 * r0 - w0 * r2 - a1, w0 * r1 - w1 * r0 - a2
-        L0 += I[0][0] * c0 + I[0][1] * c1 + I[0][2] * c2 + self._L[0]
-        L1 += I[1][0] * c0 + I[1][1] * c1 + I[1][2] * c2 + self._L[1]
-        L2 += I[2][0] * c0 + I[2][1] * c1 + I[2][2] * c2 + self._L[2]
-        return np.array([-L0, -L1, -L2])
+        out = np.empty(3)
+        b = self.body
+        mrp_feedback(e.q, np.asarray(s.omega, dtype=float), np.asarray(e.omega_r, dtype=float),
+                     np.asarray(e.domega_r, dtype=float), np.asarray(s.wheel_speed, dtype=float), b.J, b.G, b.Js,
+                     self.K, self.P, self.Ki, self.integral_limit, self.law_type, self.L, self.memory, float(s.t), out)
+        return out
 
 
 class SlidingModeAttitude:

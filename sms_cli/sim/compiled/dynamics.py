@@ -1,0 +1,606 @@
+"""Compiled (numba) rigid-body kernels on a flattened tree (``tree.Tree``): articulated-body
+forward dynamics, forward kinematics, momentum and energy, and the RKMK4 step.
+
+Conventions are Pinocchio's, so that the results equal ``pin.aba``, ``pin.integrate`` and
+``SystemModel.momenta`` to round-off (tests/test_compiled_dynamics.py): motion vectors
+``[v; ω]`` and forces ``[f; n]`` linear first, body velocities in the joint frames, the
+free-flyer configuration ``[x y z qx qy qz qw]`` (world position, base → world quaternion)
+and its velocity in the base frame; q ⊕ θ composes on the right, ``M(q) exp6(θ)``.
+No gravity (space). Arrays only, no Python objects: every function is ``@njit``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sms_cli.sim.compiled.tree import FREE_FLYER, PRISMATIC, REVOLUTE, REVOLUTE_UNBOUNDED
+
+_JIT = {"cache": True, "nogil": True, "error_model": "numpy"}  # numpy: no zero-division checks in the hot loops
+
+
+# ----------------------------------------------------------------------------- 3-D helpers
+@njit(**_JIT)
+def quat_to_matrix(x, y, z, w, R):
+    """R (3×3) of the unit quaternion (x, y, z, w)."""
+    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    R[0, 1] = 2.0 * (x * y - z * w)
+    R[0, 2] = 2.0 * (x * z + y * w)
+    R[1, 0] = 2.0 * (x * y + z * w)
+    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    R[1, 2] = 2.0 * (y * z - x * w)
+    R[2, 0] = 2.0 * (x * z - y * w)
+    R[2, 1] = 2.0 * (y * z + x * w)
+    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+
+
+@njit(**_JIT)
+def matrix_to_quat(R, out):
+    """Quaternion (x, y, z, w) of a rotation matrix, by Eigen's algorithm (the same sign as
+    ``pin.Quaternion(R)``)."""
+    t = R[0, 0] + R[1, 1] + R[2, 2]
+    if t > 0.0:
+        s = math.sqrt(t + 1.0)
+        out[3] = 0.5 * s
+        s = 0.5 / s
+        out[0] = (R[2, 1] - R[1, 2]) * s
+        out[1] = (R[0, 2] - R[2, 0]) * s
+        out[2] = (R[1, 0] - R[0, 1]) * s
+        return
+    i = 0
+    if R[1, 1] > R[0, 0]:
+        i = 1
+    if R[2, 2] > R[i, i]:
+        i = 2
+    j = (i + 1) % 3
+    k = (j + 1) % 3
+    s = math.sqrt(R[i, i] - R[j, j] - R[k, k] + 1.0)
+    out[i] = 0.5 * s
+    s = 0.5 / s
+    out[3] = (R[k, j] - R[j, k]) * s
+    out[j] = (R[j, i] + R[i, j]) * s
+    out[k] = (R[k, i] + R[i, k]) * s
+
+
+@njit(**_JIT)
+def axis_rotation(ax, angle_cos, angle_sin, R):
+    """Rotation by an angle (given by its cosine and sine) about the unit axis ax."""
+    c, s = angle_cos, angle_sin
+    t = 1.0 - c
+    x, y, z = ax[0], ax[1], ax[2]
+    R[0, 0] = c + t * x * x
+    R[0, 1] = t * x * y - s * z
+    R[0, 2] = t * x * z + s * y
+    R[1, 0] = t * x * y + s * z
+    R[1, 1] = c + t * y * y
+    R[1, 2] = t * y * z - s * x
+    R[2, 0] = t * x * z - s * y
+    R[2, 1] = t * y * z + s * x
+    R[2, 2] = c + t * z * z
+
+
+@njit(**_JIT)
+def cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+# ----------------------------------------------------------------------------- kinematics
+@njit(**_JIT)
+def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
+    """Placement of each joint frame in its parent joint frame (the root's: in the world)."""
+    n = kind.shape[0]
+    Rj = np.empty((3, 3))
+    for i in range(n):
+        k = kind[i]
+        iq = idx_q[i]
+        if k == FREE_FLYER:
+            quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], Rj)
+            for a in range(3):
+                for b in range(3):
+                    acc = 0.0
+                    for c in range(3):
+                        acc += place_R[i, a, c] * Rj[c, b]
+                    R_out[i, a, b] = acc
+                acc = place_p[i, a]
+                for c in range(3):
+                    acc += place_R[i, a, c] * q[iq + c]
+                p_out[i, a] = acc
+            continue
+        if k == PRISMATIC:
+            x = q[iq]
+            for a in range(3):
+                acc = place_p[i, a]
+                for c in range(3):
+                    R_out[i, a, c] = place_R[i, a, c]
+                    acc += place_R[i, a, c] * axis[i, c] * x
+                p_out[i, a] = acc
+            continue
+        if k == REVOLUTE:
+            axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
+        else:  # REVOLUTE_UNBOUNDED: (cos, sin)
+            axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
+        for a in range(3):
+            for b in range(3):
+                acc = 0.0
+                for c in range(3):
+                    acc += place_R[i, a, c] * Rj[c, b]
+                R_out[i, a, b] = acc
+            p_out[i, a] = place_p[i, a]
+
+
+@njit(**_JIT)
+def world_placements(parent, R_rel, p_rel, oR, op):
+    """World placement of each joint frame from the parent-relative ones (parents come first)."""
+    n = parent.shape[0]
+    for i in range(n):
+        pi = parent[i]
+        if pi < 0:
+            oR[i] = R_rel[i]
+            op[i] = p_rel[i]
+            continue
+        for a in range(3):
+            acc = op[pi, a]
+            for c in range(3):
+                acc += oR[pi, a, c] * p_rel[i, c]
+            op[i, a] = acc
+            for b in range(3):
+                acc = 0.0
+                for c in range(3):
+                    acc += oR[pi, a, c] * R_rel[i, c, b]
+                oR[i, a, b] = acc
+
+
+@njit(**_JIT)
+def frame_poses(oR, op, f_joint, f_R, f_p, out):
+    """World poses [x y z qx qy qz qw] of frames placed (f_R, f_p) in joints f_joint."""
+    R = np.empty((3, 3))
+    quat = np.empty(4)
+    for k in range(f_joint.shape[0]):
+        j = f_joint[k]
+        if j < 0:
+            for a in range(3):
+                out[k, a] = f_p[k, a]
+            R[:, :] = f_R[k]
+        else:
+            for a in range(3):
+                acc = op[j, a]
+                for c in range(3):
+                    acc += oR[j, a, c] * f_p[k, c]
+                out[k, a] = acc
+                for b in range(3):
+                    acc = 0.0
+                    for c in range(3):
+                        acc += oR[j, a, c] * f_R[k, c, b]
+                    R[a, b] = acc
+        matrix_to_quat(R, quat)
+        out[k, 3:7] = quat
+
+
+@njit(**_JIT)
+def relative_poses(world, parent, out):
+    """Pose of each frame in its parent frame (row ``parent[k]``, −1: the world), from world
+    poses [x y z qx qy qz qw]: translation R_pᵀ (r_c − r_p), rotation q_p* ⊗ q_c
+    (``sms_cli.sim.frames.RelativePoses``)."""
+    for k in range(world.shape[0]):
+        p = parent[k]
+        if p < 0:
+            out[k] = world[k]
+            continue
+        ux, uy, uz, w = -world[p, 3], -world[p, 4], -world[p, 5], world[p, 6]
+        dx, dy, dz = world[k, 0] - world[p, 0], world[k, 1] - world[p, 1], world[k, 2] - world[p, 2]
+        tx, ty, tz = 2.0 * (uy * dz - uz * dy), 2.0 * (uz * dx - ux * dz), 2.0 * (ux * dy - uy * dx)
+        out[k, 0] = dx + w * tx + (uy * tz - uz * ty)
+        out[k, 1] = dy + w * ty + (uz * tx - ux * tz)
+        out[k, 2] = dz + w * tz + (ux * ty - uy * tx)
+        qx, qy, qz, qw = world[k, 3], world[k, 4], world[k, 5], world[k, 6]
+        out[k, 3] = w * qx + qw * ux + (uy * qz - uz * qy)
+        out[k, 4] = w * qy + qw * uy + (uz * qx - ux * qz)
+        out[k, 5] = w * qz + qw * uz + (ux * qy - uy * qx)
+        out[k, 6] = w * qw - ux * qx - uy * qy - uz * qz
+
+
+# ----------------------------------------------------------------------------- spatial algebra
+@njit(**_JIT)
+def motion_act_inv(R, p, m, out):
+    """(R, p)⁻¹ acting on motion m (parent coordinates → child): [Rᵀ(v − p×ω); Rᵀω]."""
+    v0 = m[0] - (p[1] * m[5] - p[2] * m[4])
+    v1 = m[1] - (p[2] * m[3] - p[0] * m[5])
+    v2 = m[2] - (p[0] * m[4] - p[1] * m[3])
+    for a in range(3):
+        out[a] = R[0, a] * v0 + R[1, a] * v1 + R[2, a] * v2
+        out[3 + a] = R[0, a] * m[3] + R[1, a] * m[4] + R[2, a] * m[5]
+
+
+@njit(**_JIT)
+def force_act(R, p, f, out):
+    """(R, p) acting on force f (child coordinates → parent): [R f; R n + p × R f]."""
+    for a in range(3):
+        out[a] = R[a, 0] * f[0] + R[a, 1] * f[1] + R[a, 2] * f[2]
+        out[3 + a] = R[a, 0] * f[3] + R[a, 1] * f[4] + R[a, 2] * f[5]
+    out[3] += p[1] * out[2] - p[2] * out[1]
+    out[4] += p[2] * out[0] - p[0] * out[2]
+    out[5] += p[0] * out[1] - p[1] * out[0]
+
+
+@njit(**_JIT)
+def motion_cross(v, m, out):
+    """v × m = [ω×m_v + v×m_ω; ω×m_ω]."""
+    out[0] = v[4] * m[2] - v[5] * m[1] + v[1] * m[5] - v[2] * m[4]
+    out[1] = v[5] * m[0] - v[3] * m[2] + v[2] * m[3] - v[0] * m[5]
+    out[2] = v[3] * m[1] - v[4] * m[0] + v[0] * m[4] - v[1] * m[3]
+    out[3] = v[4] * m[5] - v[5] * m[4]
+    out[4] = v[5] * m[3] - v[3] * m[5]
+    out[5] = v[3] * m[4] - v[4] * m[3]
+
+
+@njit(**_JIT)
+def force_cross(v, f, out):
+    """v ×* f = [ω×f; ω×n + v×f]."""
+    out[0] = v[4] * f[2] - v[5] * f[1]
+    out[1] = v[5] * f[0] - v[3] * f[2]
+    out[2] = v[3] * f[1] - v[4] * f[0]
+    out[3] = v[4] * f[5] - v[5] * f[4] + v[1] * f[2] - v[2] * f[1]
+    out[4] = v[5] * f[3] - v[3] * f[5] + v[2] * f[0] - v[0] * f[2]
+    out[5] = v[3] * f[4] - v[4] * f[3] + v[0] * f[1] - v[1] * f[0]
+
+
+@njit(**_JIT)
+def act_matrix_inv(R, p, X):
+    """6×6 matrix of motion_act_inv: X = [[Rᵀ, −Rᵀ[p]×], [0, Rᵀ]]."""
+    X[:, :] = 0.0
+    for a in range(3):
+        for b in range(3):
+            X[a, b] = R[b, a]
+            X[3 + a, 3 + b] = R[b, a]
+    # −Rᵀ [p]× column b: −Rᵀ (p × e_b)
+    for a in range(3):
+        X[a, 3] = -(R[1, a] * p[2] - R[2, a] * p[1])  # p × e_x = (0, p2, −p1)
+        X[a, 4] = -(R[2, a] * p[0] - R[0, a] * p[2])  # p × e_y = (−p2, 0, p0)
+        X[a, 5] = -(R[0, a] * p[1] - R[1, a] * p[0])  # p × e_z = (p1, −p0, 0)
+
+
+@njit(**_JIT)
+def add_inertia_to_parent(R, p, Ia, J, K, out):
+    """out += Xᵀ Ia X for X = motion_act_inv(R, p): a 6×6 inertia moved to the parent frame.
+    By blocks: J = diag(R) Ia diag(Rᵀ) = [[A, B], [Bᵀ, C]], then with P = [p]×
+    Xᵀ Ia X = [[A, B − A P], [Bᵀ − (A P)ᵀ, C − Bᵀ P − (Bᵀ P)ᵀ − P A P)]] (J, K: 6×6 scratch)."""
+    for bi in range(2):
+        for bj in range(2):
+            for a in range(3):  # K block = R · Ia block
+                for b in range(3):
+                    K[3 * bi + a, 3 * bj + b] = (R[a, 0] * Ia[3 * bi, 3 * bj + b] + R[a, 1] * Ia[3 * bi + 1, 3 * bj + b]
+                                                 + R[a, 2] * Ia[3 * bi + 2, 3 * bj + b])
+            for a in range(3):  # J block = K block · Rᵀ
+                for b in range(3):
+                    J[3 * bi + a, 3 * bj + b] = (K[3 * bi + a, 3 * bj] * R[b, 0] + K[3 * bi + a, 3 * bj + 1] * R[b, 1]
+                                                 + K[3 * bi + a, 3 * bj + 2] * R[b, 2])
+    p0, p1, p2 = p[0], p[1], p[2]
+    for a in range(3):  # row vectors times P: (x P) = (x1 p2 − x2 p1, x2 p0 − x0 p2, x0 p1 − x1 p0)
+        for blk in range(2):  # K[:3, :3] = A P, K[3:, 3:] = Bᵀ P
+            x0, x1, x2 = J[3 * blk + a, 0], J[3 * blk + a, 1], J[3 * blk + a, 2]
+            K[3 * blk + a, 3 * blk] = x1 * p2 - x2 * p1
+            K[3 * blk + a, 3 * blk + 1] = x2 * p0 - x0 * p2
+            K[3 * blk + a, 3 * blk + 2] = x0 * p1 - x1 * p0
+    for a in range(3):
+        for b in range(3):
+            out[a, b] += J[a, b]
+            out[a, 3 + b] += J[a, 3 + b] - K[a, b]
+            out[3 + b, a] += J[3 + b, a] - K[a, b]
+    for b in range(3):
+        y0, y1, y2 = K[0, b], K[1, b], K[2, b]  # column b of A P; P y = p × y
+        py = (p1 * y2 - p2 * y1, p2 * y0 - p0 * y2, p0 * y1 - p1 * y0)
+        for a in range(3):
+            out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, 3 + b] - K[3 + b, 3 + a] - py[a]
+
+
+@njit(**_JIT)
+def _subspace(kind, axis, S):
+    """Motion subspace (6,) of a 1-DoF joint in its frame."""
+    S[:] = 0.0
+    if kind == PRISMATIC:
+        S[0], S[1], S[2] = axis[0], axis[1], axis[2]
+    else:
+        S[3], S[4], S[5] = axis[0], axis[1], axis[2]
+
+
+# ----------------------------------------------------------------------------- dynamics
+@njit(**_JIT)
+def workspace(n, nq, nv):
+    """Scratch arrays for n bodies, reused by every kernel below (no allocation in the hot loop)."""
+    return (np.empty((n, 6)), np.zeros((n, 6)), np.empty((n, 6, 6)), np.empty((n, 6)), np.zeros((n, 6)),
+            np.ones(n), np.zeros(n), np.empty((n, 6)), np.empty((n, 3, 3)), np.empty((n, 3)),
+            np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty(6), np.empty(6), np.empty(6),
+            np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((8, nv)), np.empty(nq))
+
+
+@njit(**_JIT)
+def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
+    """Spatial velocity of each body in its joint frame."""
+    n = parent.shape[0]
+    for i in range(n):
+        iv = idx_v[i]
+        if kind[i] == FREE_FLYER:
+            for a in range(6):
+                vel[i, a] = v[iv + a]
+            continue
+        motion_act_inv(R_rel[i], p_rel[i], vel[parent[i]], vel[i])
+        off = 0 if kind[i] == PRISMATIC else 3
+        for a in range(3):
+            vel[i, off + a] += axis[i, a] * v[iv]
+
+
+@njit(**_JIT)
+def _solve_spd6(A, b, L, out):
+    """out = A⁻¹ b for a symmetric positive definite 6×6 A (Cholesky; L is scratch)."""
+    for j in range(6):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        d = math.sqrt(d)
+        L[j, j] = d
+        for i in range(j + 1, 6):
+            x = A[i, j]
+            for k in range(j):
+                x -= L[i, k] * L[j, k]
+            L[i, j] = x / d
+    for i in range(6):
+        x = b[i]
+        for k in range(i):
+            x -= L[i, k] * out[k]
+        out[i] = x / L[i, i]
+    for i in range(5, -1, -1):
+        x = out[i]
+        for k in range(i + 1, 6):
+            x -= L[k, i] * out[k]
+        out[i] = x / L[i, i]
+
+
+@njit(**_JIT)
+def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, vdot, ws):
+    """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
+    no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``."""
+    vel, c, IA, pA, U, D, u, acc6 = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7]
+    X, Ia, XtIa, tmp, pa, S = ws[10], ws[11], ws[12], ws[13], ws[14], ws[15]
+    n = parent.shape[0]
+    body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
+    for i in range(n):
+        for a in range(6):
+            acc = 0.0
+            for b in range(6):
+                IA[i, a, b] = inertia[i, a, b]
+                acc += inertia[i, a, b] * vel[i, b]
+            tmp[a] = acc
+        force_cross(vel[i], tmp, pA[i])
+        if kind[i] != FREE_FLYER:
+            _subspace(kind[i], axis[i], S)
+            qd = v[idx_v[i]]
+            for a in range(6):
+                pa[a] = S[a] * qd
+            motion_cross(vel[i], pa, c[i])
+    for i in range(n - 1, -1, -1):
+        if kind[i] == FREE_FLYER:
+            continue
+        iv = idx_v[i]
+        _subspace(kind[i], axis[i], S)
+        for a in range(6):
+            acc = 0.0
+            for b in range(6):
+                acc += IA[i, a, b] * S[b]
+            U[i, a] = acc
+        d = armature[iv]
+        s_pa = 0.0
+        for a in range(6):
+            d += S[a] * U[i, a]
+            s_pa += S[a] * pA[i, a]
+        D[i] = d
+        u[i] = tau[iv] - s_pa
+        pi = parent[i]
+        for a in range(6):
+            for b in range(6):
+                Ia[a, b] = IA[i, a, b] - U[i, a] * U[i, b] / d
+        for a in range(6):
+            acc = pA[i, a] + U[i, a] * u[i] / d
+            for b in range(6):
+                acc += Ia[a, b] * c[i, b]
+            pa[a] = acc
+        # parent += Xᵀ Ia X (X: parent motion → child motion), pA_parent += X* pa
+        add_inertia_to_parent(R_rel[i], p_rel[i], Ia, XtIa, X, IA[pi])
+        force_act(R_rel[i], p_rel[i], pa, tmp)
+        for a in range(6):
+            pA[pi, a] += tmp[a]
+    for i in range(n):
+        iv = idx_v[i]
+        if kind[i] == FREE_FLYER:
+            for a in range(6):
+                tmp[a] = tau[iv + a] - pA[i, a]
+            _solve_spd6(IA[i], tmp, X, acc6[i])
+            for a in range(6):
+                vdot[iv + a] = acc6[i, a]
+            continue
+        motion_act_inv(R_rel[i], p_rel[i], acc6[parent[i]], acc6[i])
+        for a in range(6):
+            acc6[i, a] += c[i, a]
+        _subspace(kind[i], axis[i], S)
+        ua = 0.0
+        for a in range(6):
+            ua += U[i, a] * acc6[i, a]
+        qdd = (u[i] - ua) / D[i]
+        vdot[iv] = qdd
+        for a in range(6):
+            acc6[i, a] += S[a] * qdd
+
+
+@njit(**_JIT)
+def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, out, ws):
+    """out = [p (3), k about the CoM (3), k about the world origin (3), kinetic energy (J)], world frame."""
+    vel, oR, op, f, fw = ws[0], ws[16], ws[17], ws[13], ws[14]
+    n = parent.shape[0]
+    body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
+    world_placements(parent, R_rel, p_rel, oR, op)
+    h0 = h1 = h2 = h3 = h4 = h5 = 0.0
+    c0 = c1 = c2 = 0.0
+    mtot = 0.0
+    energy = 0.0
+    for i in range(n):
+        for a in range(6):
+            acc = 0.0
+            for b in range(6):
+                acc += inertia[i, a, b] * vel[i, b]
+            f[a] = acc
+            energy += 0.5 * vel[i, a] * acc
+        force_act(oR[i], op[i], f, fw)
+        h0 += fw[0]
+        h1 += fw[1]
+        h2 += fw[2]
+        h3 += fw[3]
+        h4 += fw[4]
+        h5 += fw[5]
+        m = mass[i]
+        c0 += m * (op[i, 0] + oR[i, 0, 0] * com[i, 0] + oR[i, 0, 1] * com[i, 1] + oR[i, 0, 2] * com[i, 2])
+        c1 += m * (op[i, 1] + oR[i, 1, 0] * com[i, 0] + oR[i, 1, 1] * com[i, 1] + oR[i, 1, 2] * com[i, 2])
+        c2 += m * (op[i, 2] + oR[i, 2, 0] * com[i, 0] + oR[i, 2, 1] * com[i, 1] + oR[i, 2, 2] * com[i, 2])
+        mtot += m
+    for k in range(armature.shape[0]):
+        energy += 0.5 * armature[k] * v[k] * v[k]
+    c0, c1, c2 = c0 / mtot, c1 / mtot, c2 / mtot
+    out[0], out[1], out[2] = h0, h1, h2
+    out[3] = h3 - (c1 * h2 - c2 * h1)
+    out[4] = h4 - (c2 * h0 - c0 * h2)
+    out[5] = h5 - (c0 * h1 - c1 * h0)
+    out[6], out[7], out[8] = h3, h4, h5
+    out[9] = energy
+
+
+# ----------------------------------------------------------------------------- integration
+@njit(**_JIT)
+def quat_exp_mul(q, w, out):
+    """out = q ⊗ exp(w/2) (xyzw; w a rotation vector in the frame of q), normalised."""
+    ang = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    if ang < 1e-8:
+        s = 0.5 - ang * ang / 48.0
+        c = 1.0 - ang * ang / 8.0
+    else:
+        s = math.sin(0.5 * ang) / ang
+        c = math.cos(0.5 * ang)
+    bx, by, bz, bw = s * w[0], s * w[1], s * w[2], c
+    ax, ay, az, aw = q[0], q[1], q[2], q[3]
+    x = aw * bx + ax * bw + ay * bz - az * by
+    y = aw * by - ax * bz + ay * bw + az * bx
+    z = aw * bz + ax * by - ay * bx + az * bw
+    ww = aw * bw - ax * bx - ay * by - az * bz
+    nrm = math.sqrt(x * x + y * y + z * z + ww * ww)
+    out[0], out[1], out[2], out[3] = x / nrm, y / nrm, z / nrm, ww / nrm
+
+
+@njit(**_JIT)
+def integrate(kind, axis, idx_q, idx_v, q, theta, out):
+    """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
+    n = kind.shape[0]
+    R = np.empty((3, 3))
+    for i in range(n):
+        iq, iv = idx_q[i], idx_v[i]
+        k = kind[i]
+        if k == FREE_FLYER:
+            # M0 exp6([ρ; φ]): p = p0 + R0 V(φ) ρ, quaternion q0 ⊗ exp(φ)
+            px, py, pz = theta[iv], theta[iv + 1], theta[iv + 2]
+            wx, wy, wz = theta[iv + 3], theta[iv + 4], theta[iv + 5]
+            t2 = wx * wx + wy * wy + wz * wz
+            t = math.sqrt(t2)
+            if t < 1e-4:
+                a = 0.5 - t2 / 24.0
+                b = 1.0 / 6.0 - t2 / 120.0
+            else:
+                a = (1.0 - math.cos(t)) / t2
+                b = (t - math.sin(t)) / (t2 * t)
+            # V ρ = ρ + a φ×ρ + b φ×(φ×ρ)
+            c0 = wy * pz - wz * py
+            c1 = wz * px - wx * pz
+            c2 = wx * py - wy * px
+            d0 = wy * c2 - wz * c1
+            d1 = wz * c0 - wx * c2
+            d2 = wx * c1 - wy * c0
+            l0 = px + a * c0 + b * d0
+            l1 = py + a * c1 + b * d1
+            l2 = pz + a * c2 + b * d2
+            quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], R)
+            for r in range(3):
+                out[iq + r] = q[iq + r] + R[r, 0] * l0 + R[r, 1] * l1 + R[r, 2] * l2
+            quat_exp_mul(q[iq + 3:iq + 7], theta[iv + 3:iv + 6], out[iq + 3:iq + 7])
+        elif k == REVOLUTE_UNBOUNDED:
+            ca, sa = math.cos(theta[iv]), math.sin(theta[iv])
+            c0, s0 = q[iq], q[iq + 1]
+            out[iq] = c0 * ca - s0 * sa
+            out[iq + 1] = s0 * ca + c0 * sa
+        else:
+            out[iq] = q[iq] + theta[iv]
+
+
+@njit(**_JIT)
+def dexpinv_neg(theta, v, out):
+    """dexp⁻¹_{−θ}(v) = v + ½[θ, v] + 1/12 [θ, [θ, v]] on the free-flyer block (first 6),
+    identity on the joints (``sms_cli.dynamics.integrator._dexpinv_neg``)."""
+    for a in range(v.shape[0]):
+        out[a] = v[a]
+    r0, r1, r2, p0, p1, p2 = theta[0], theta[1], theta[2], theta[3], theta[4], theta[5]
+    u0, u1, u2, w0, w1, w2 = v[0], v[1], v[2], v[3], v[4], v[5]
+    a0 = p1 * u2 - p2 * u1 + r1 * w2 - r2 * w1
+    a1 = p2 * u0 - p0 * u2 + r2 * w0 - r0 * w2
+    a2 = p0 * u1 - p1 * u0 + r0 * w1 - r1 * w0
+    b0 = p1 * w2 - p2 * w1
+    b1 = p2 * w0 - p0 * w2
+    b2 = p0 * w1 - p1 * w0
+    out[0] = u0 + 0.5 * a0 + (p1 * a2 - p2 * a1 + r1 * b2 - r2 * b1) / 12.0
+    out[1] = u1 + 0.5 * a1 + (p2 * a0 - p0 * a2 + r2 * b0 - r0 * b2) / 12.0
+    out[2] = u2 + 0.5 * a2 + (p0 * a1 - p1 * a0 + r0 * b1 - r1 * b0) / 12.0
+    out[3] = w0 + 0.5 * b0 + (p1 * b2 - p2 * b1) / 12.0
+    out[4] = w1 + 0.5 * b1 + (p2 * b0 - p0 * b2) / 12.0
+    out[5] = w2 + 0.5 * b2 + (p0 * b1 - p1 * b0) / 12.0
+
+
+@njit(**_JIT)
+def forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, vdot, ws):
+    """vdot = FD(q, v, τ): joint transforms then ABA."""
+    R_rel, p_rel = ws[8], ws[9]
+    joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+    aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, vdot, ws)
+
+
+@njit(**_JIT)
+def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, dt, q_out, v_out, ws):
+    """One RKMK4 step of size dt (s) under the held generalized forces τ
+    (``sms_cli.dynamics.integrator.rkmk4_step``, rigid branch)."""
+    nv = v.shape[0]
+    h = 0.5 * dt
+    st = ws[18]
+    a1, a2, a3, a4, th, vs, kk, k4 = st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7]
+    qs = ws[19]
+    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, a1, ws)
+    for a in range(nv):
+        th[a] = h * v[a]
+        vs[a] = v[a] + h * a1[a]
+    integrate(kind, axis, idx_q, idx_v, q, th, qs)
+    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau, a2, ws)
+    dexpinv_neg(th, vs, kk)  # k2
+    for a in range(nv):
+        k4[a] = kk[a]  # keep k2 (k4's slot is free until the last stage)
+        th[a] = h * kk[a]
+        vs[a] = v[a] + h * a2[a]
+    integrate(kind, axis, idx_q, idx_v, q, th, qs)
+    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau, a3, ws)
+    dexpinv_neg(th, vs, kk)  # k3
+    for a in range(nv):
+        k4[a] += kk[a]  # k2 + k3
+        th[a] = dt * kk[a]
+        vs[a] = v[a] + dt * a3[a]
+    integrate(kind, axis, idx_q, idx_v, q, th, qs)
+    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau, a4, ws)
+    dexpinv_neg(th, vs, kk)  # k4
+    c = dt / 6.0
+    for a in range(nv):
+        th[a] = c * (v[a] + 2.0 * k4[a] + kk[a])
+        v_out[a] = v[a] + c * (a1[a] + 2.0 * (a2[a] + a3[a]) + a4[a])
+    integrate(kind, axis, idx_q, idx_v, q, th, q_out)

@@ -1,0 +1,186 @@
+"""The compiled simulation loop for one phase (or a slice of one): sense → mrpFeedback → wheel
+allocation and limits (ZOH at the control rate) → RKMK4 plant sub-steps, with the per-tick trace
+and the per-step states the recorder samples from.
+
+It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the missions the compiled
+engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, no arm,
+noiseless sensors, no disturbances, step attitude references. tests/test_compiled_engine.py
+checks the two engines against each other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sms_cli.sim.compiled.control import (allocate_and_clip, error_angle, error_quaternion, limited_torque,
+                                          may_reach_limit, mrp_feedback)
+from sms_cli.sim.compiled.dynamics import (aba, frame_poses, joint_transforms, momenta_energy, relative_poses,
+                                           rkmk4_step, workspace, world_placements)
+
+RUNNING, SETTLED, NON_FINITE, RATE_LIMIT = 0, 1, 2, 3
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, wheel_v, out, ws):
+    """1 / (M⁻¹)_ii for each wheel velocity index: the inertia its relative speed sees at q
+    (``WheelArray.update_effective_inertia``); columns of M⁻¹ by ABA at zero velocity."""
+    nv = armature.shape[0]
+    R_rel, p_rel = ws[8], ws[9]
+    joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+    zero = np.zeros(nv)
+    tau = np.zeros(nv)
+    col = np.empty(nv)
+    for k in range(wheel_v.shape[0]):
+        tau[:] = 0.0
+        tau[wheel_v[k]] = 1.0
+        aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, zero, tau, col, ws)
+        out[k] = 1.0 / col[wheel_v[k]]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def run_ticks(
+    # tree
+    parent, kind, axis, place_R, place_p, inertia, mass, com, armature, idx_q, idx_v,
+    # wheels
+    wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
+    # law (mrpFeedback) and phase
+    law_on, thrusters, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type, L_known, q_ref,
+    settle_tol, settle_time,
+    # timing and limits
+    t0, dt, n_sub, tick0, n_ticks, max_rate,
+    # state, in/out
+    q, v, law_mem, eff_inertia, settled_since,
+    # outputs per control tick
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy,
+    # outputs per plant step (state after the step and the wheel torque applied during it)
+    st_t, st_q, st_v, st_tw,
+):
+    """Advance up to ``n_ticks`` control periods from time t0; returns (ticks, steps, status).
+
+    status: RUNNING (all ticks done), SETTLED (the phase's until_settled condition ended it),
+    NON_FINITE or RATE_LIMIT (divergence: the state at the last completed tick is in q, v)."""
+    nv = v.shape[0]
+    nq = q.shape[0]
+    nw = wheel_v.shape[0]
+    n = parent.shape[0]
+    zero3 = np.zeros(3)
+    T = np.zeros(3)
+    qe = np.empty(4)
+    omega = np.empty(3)
+    ws = np.empty(nw)
+    tau_w = np.zeros(nw)
+    tau_applied = np.zeros(nw)
+    tau = np.zeros(nv)
+    q_new = np.empty(nq)
+    v_new = np.empty(nv)
+    work = workspace(n, nq, nv)
+    R_rel = np.empty((n, 3, 3))
+    p_rel = np.empty((n, 3))
+    me = np.empty(10)
+    t = t0
+    steps = 0
+    for k in range(n_ticks):
+        tick = tick0 + k
+        for a in range(3):
+            omega[a] = v[3 + a]
+        for i in range(nw):
+            ws[i] = v[wheel_v[i]]
+        # control (held over the period)
+        T[:] = 0.0
+        tau_w[:] = 0.0
+        sat = False
+        if law_on:
+            error_quaternion(q[3:7], q_ref, qe)
+            mrp_feedback(qe, omega, zero3, zero3, ws, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type,
+                         L_known, law_mem, t, T)
+            if not thrusters:
+                sat = allocate_and_clip(T, ws, A_pinv, null, spin, null_gain, target_speed, max_torque, tau_w)
+        # trace (state at the tick)
+        tr_t[k] = t
+        tr_err[k] = error_angle(q[3:7], q_ref)
+        for i in range(nw):
+            tr_ws[k, i] = ws[i]
+            tr_tw[k, i] = tau_w[i]
+        tr_sat[k] = sat
+        for a in range(3):
+            tr_bt[k, a] = T[a]
+        joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+        momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
+        for a in range(3):
+            tr_mom[k, a] = me[a]
+            tr_mom[k, 3 + a] = me[6 + a]
+        tr_energy[k] = me[9]
+        if nw and tick % 10 == 0:
+            effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, wheel_v,
+                                    eff_inertia, work)
+        tau[:] = 0.0
+        if law_on and thrusters:
+            for a in range(3):
+                tau[3 + a] = T[a]
+        live = nw > 0 and (may_reach_limit(ws, tau_w, eff_inertia, max_speed, n_sub * dt)
+                           or coulomb != 0.0 or viscous != 0.0)
+        for i in range(nw):
+            tau[wheel_v[i]] = tau_w[i]
+            tau_applied[i] = tau_w[i]
+        for _ in range(n_sub):
+            if live:
+                for i in range(nw):
+                    ws[i] = v[wheel_v[i]]
+                limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
+                for i in range(nw):
+                    tau[wheel_v[i]] = tau_applied[i]
+            rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, dt, q_new, v_new, work)
+            q[:] = q_new
+            v[:] = v_new
+            t += dt
+            st_t[steps] = t
+            st_q[steps] = q
+            st_v[steps] = v
+            for i in range(nw):
+                st_tw[steps, i] = tau_applied[i]
+            steps += 1
+        vmax = 0.0
+        finite = True
+        for a in range(nv):
+            if not math.isfinite(v[a]):
+                finite = False
+            vmax = max(vmax, abs(v[a]))
+        for a in range(nq):
+            if not math.isfinite(q[a]):
+                finite = False
+        if not finite:
+            return k + 1, steps, NON_FINITE
+        if vmax > max_rate:
+            return k + 1, steps, RATE_LIMIT
+        if settle_tol > 0:
+            if error_angle(q[3:7], q_ref) < settle_tol:
+                if math.isnan(settled_since[0]):
+                    settled_since[0] = t
+                if t - settled_since[0] >= settle_time:
+                    return k + 1, steps, SETTLED
+            else:
+                settled_since[0] = math.nan
+    return n_ticks, steps, RUNNING
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sample_outputs(parent, kind, axis, place_R, place_p, inertia, mass, com, armature, idx_q, idx_v,
+                   f_joint, f_R, f_p, f_parent, qs, vs, poses, rel, mom):
+    """For each sampled state (rows of qs, vs): world poses of the recorded frames
+    (poses[s, k] = [x y z qx qy qz qw]), their poses in their parent frames (rows f_parent,
+    −1: world) and [p, k about the CoM, k about the origin, energy]."""
+    n = parent.shape[0]
+    ws = workspace(n, qs.shape[1], vs.shape[1])
+    R_rel = np.empty((n, 3, 3))
+    p_rel = np.empty((n, 3))
+    oR = np.empty((n, 3, 3))
+    op = np.empty((n, 3))
+    for s in range(qs.shape[0]):
+        joint_transforms(kind, axis, place_R, place_p, idx_q, qs[s], R_rel, p_rel)
+        world_placements(parent, R_rel, p_rel, oR, op)
+        frame_poses(oR, op, f_joint, f_R, f_p, poses[s])
+        relative_poses(poses[s], f_parent, rel[s])
+        momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, vs[s], mom[s], ws)

@@ -1,0 +1,225 @@
+"""The compiled engine: the whole simulation loop in numba (``loop.run_ticks``), metrics from its
+arrays and the MCAP recording written in blocks. Same results as the Python engine
+(``sms_cli.sim.engine.Simulation``) for the missions it accepts; ``unsupported_reason`` says why
+it does not accept the others (the Python engine then runs them).
+
+The loop runs in slices of at most ``chunk_steps`` plant steps, so memory stays bounded, the
+progress bar moves and Ctrl-C is honoured between slices (numba code cannot be interrupted).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from sms_cli.model.system import SystemModel
+from sms_cli.sim.attitude_math import attitude_error
+from sms_cli.sim.schema import SimulationSpec
+
+CHUNK_STEPS = 20_000
+
+
+def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str | None:
+    """Why the compiled engine cannot run this mission (None when it can)."""
+    from sms_cli.sim.compiled.tree import unsupported_reason as tree_reason
+    from sms_cli.sim.laws.schema import MrpFeedbackSpec
+
+    checks = [
+        (sm.n_modes > 0, "the model has flexible modes"),
+        (bool(sm.springs), "the model has spring joints"),
+        (bool(sm.arm), "the model has an arm"),
+        (spec.ndi is not None or spec.arm is not None or spec.resolved_rate is not None,
+         "the mission uses an arm law, NDI or resolved-rate control"),
+        (att_spec is not None and not isinstance(att_spec, MrpFeedbackSpec),
+         f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: mrp_feedback)"),
+        (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0) for n in (spec.sensors.gyro, spec.sensors.attitude)),
+         "the sensors are noisy"),
+        (bool(spec.disturbances), "the mission has disturbances"),
+        (any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed"),
+        (any(p.attitude_profile != "step" for p in spec.phases), "a phase has a smooth attitude profile"),
+        (any(p.attach or p.detach or p.waypoints or p.end_effector is not None for p in spec.phases),
+         "a phase attaches or releases a payload or moves the arm"),
+    ]
+    for bad, why in checks:
+        if bad:
+            return why
+    return tree_reason(sm.model)
+
+
+class CompiledSimulation:
+    """One mission simulation by the compiled loop (see the module docstring)."""
+
+    def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder, progress, att_law,
+                 chunk_steps: int = CHUNK_STEPS):
+        from sms_cli.sim.actuators import WheelArray
+        from sms_cli.sim.compiled.tree import flatten, frame_table
+        from sms_cli.sim.engine import Progress
+
+        self.sm, self.spec, self.rec = sm, spec, recorder
+        self.law = att_law
+        self.tree = flatten(sm.model)
+        self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
+        self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
+        self.chunk_ticks = max(1, chunk_steps // self.n_sub)
+        self.links = list(sm.link_parents)
+        fids = [sm.model.getFrameId(n) for n in self.links] + [sm.ee_frame_id]
+        row = {name: i for i, name in enumerate(self.links)}
+        parent_rows = np.array([row.get(sm.link_parents[n], -1) for n in self.links] + [-1], dtype=np.int64)
+        self.frames = (*frame_table(sm.model, fids), parent_rows)
+        self.progress = Progress(sum(p.duration for p in spec.phases), progress)
+
+    # ------------------------------------------------------------------ pieces
+    def _tree_args(self):
+        T = self.tree
+        return (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.mass, T.com, T.armature, T.idx_q, T.idx_v)
+
+    def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World poses (n, n_frames, 7) of the recorded links + end effector, the links' poses in
+        their parent links (same shape), and momenta (n, 10: p, k_CoM, k_origin, energy)."""
+        from sms_cli.sim.compiled.loop import sample_outputs
+
+        n = qs.shape[0]
+        poses = np.empty((n, len(self.frames[0]), 7))
+        rel = np.empty_like(poses)
+        mom = np.empty((n, 10))
+        sample_outputs(*self._tree_args(), *self.frames, np.ascontiguousarray(qs), np.ascontiguousarray(vs), poses, rel,
+                       mom)
+        return poses, rel, mom
+
+    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None) -> None:
+        """Offer the plant-step states to the recorder and write the samples it picks."""
+        from sms_cli.sim.topics import numeric_topics
+
+        rec = self.rec
+        idx = rec.select(times)
+        if idx.size == 0:
+            return
+        qs, vs, tau_w = qs[idx], vs[idx], tau_w[idx]
+        poses, rel, mom = self._samples(qs, vs)
+        refs = np.broadcast_to(ref_quat, (idx.size, 4))
+        err = attitude_error(refs, qs[:, 3:7]) if err_vec is None else err_vec
+        scalars = numeric_topics(self.sm, q=qs, v=vs, wheel_torque=tau_w, ref_quat=refs, err_vec=err,
+                                 momentum_p=mom[:, 0:3], momentum_k=mom[:, 3:6], ee=poses[:, -1, :3])
+        rec.write_block(times[idx], transforms=rel[:, :-1], scalars=scalars, relative=True)
+
+    def _law_args(self):
+        law = self.law
+        if law is None:
+            return (np.eye(3), np.zeros((3, 0)), np.zeros(0), 0.0, 0.0, -1.0, np.inf, 0, np.zeros(3))
+        b = law.body
+        return (np.ascontiguousarray(b.J, dtype=float), np.ascontiguousarray(b.G, dtype=float),
+                np.ascontiguousarray(b.Js, dtype=float), law.K, law.P, law.Ki, law.integral_limit, law.law_type,
+                np.ascontiguousarray(law.L, dtype=float))
+
+    # ------------------------------------------------------------------ main loop
+    def run(self):
+        from sms_cli.sim.compiled.loop import NON_FINITE, RATE_LIMIT, SETTLED, run_ticks
+        from sms_cli.sim.engine import build_result, phase_event
+        from sms_cli.sim.references import AttitudeProfile
+
+        sm, spec, wh = self.sm, self.spec, self.wheels
+        T = self.tree
+        q, v = sm.q0.astype(float).copy(), sm.v0.astype(float).copy()
+        nw = wh.n
+        wheel_v = np.asarray(sm.idx.wheels, dtype=np.int64)
+        memory = self.law.memory if self.law is not None else np.zeros(4)
+        eff = wh.spin.astype(float).copy()
+        fr = spec.wheel_friction
+        wheel_args = (wheel_v, np.ascontiguousarray(wh.A_pinv), np.ascontiguousarray(wh.null), wh.spin.astype(float),
+                      float(spec.allocation.null_space_gain), float(spec.allocation.target_speed),
+                      wh.max_torque.astype(float), wh.max_speed.astype(float), float(fr.coulomb), float(fr.viscous))
+        law_args = self._law_args()
+        q_att_ref = q[3:7].copy()
+        t, steps = 0.0, 0
+        status, why = "completed", ""
+        spans: list[tuple[int, float, float]] = []
+        pieces: list[dict] = []
+        last_T = np.zeros(3)
+        if self.rec is not None:  # the initial state is part of the recording
+            self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)))
+        wall0 = time.perf_counter()
+        try:
+            for ip, phase in enumerate(spec.phases):
+                t_phase0 = t
+                if self.rec is not None:
+                    self.rec.write_event(t, "phase", phase_event(phase))
+                q_ref = AttitudeProfile(q_att_ref, phase.attitude, "step", None).q_target.astype(float)
+                law_on = phase.base_mode != "free-floating" and self.law is not None
+                thrusters = phase.base_mode == "free-flying" or spec.attitude_actuator == "thrusters"
+                settle_tol = float(phase.until_settled) if phase.until_settled is not None else -1.0
+                settled = np.array([np.nan])
+                n_ticks = int(round(phase.duration * spec.control_rate))
+                tick0 = 0
+                while tick0 < n_ticks:
+                    m = min(self.chunk_ticks, n_ticks - tick0)
+                    ms = m * self.n_sub
+                    tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
+                          "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
+                          "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m)}
+                    st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, T.nq)), np.empty((ms, T.nv)), np.empty((ms, nw))
+                    ticks, n_steps, code = run_ticks(
+                        *self._tree_args(), *wheel_args, law_on, thrusters, *law_args, q_ref, settle_tol,
+                        float(phase.settle_time), t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
+                        q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
+                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], st_t, st_q, st_v, st_tw)
+                    piece = {k: a[:ticks] for k, a in tr.items()}
+                    piece["phase"] = np.full(ticks, ip)
+                    pieces.append(piece)
+                    if ticks:
+                        last_T = piece["base_torque"][-1].copy()
+                    if n_steps:
+                        t = float(st_t[n_steps - 1])
+                        steps += n_steps
+                        if self.rec is not None:
+                            self._record(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref)
+                    self.progress.update(t)
+                    if code == NON_FINITE:
+                        raise _Stop("the state became non-finite")
+                    if code == RATE_LIMIT:
+                        vmax = float(np.max(np.abs(v)))
+                        raise _Stop(f"a generalized velocity reached {vmax:.4g} (limit {spec.divergence.max_rate:g})")
+                    if code == SETTLED:
+                        break
+                    tick0 += ticks
+                spans.append((ip, t_phase0, t))
+                q_att_ref = q_ref if phase.attitude is not None else q_att_ref
+        except _Stop as exc:
+            status, why = "diverged", str(exc)
+            if self.rec is not None:
+                self.rec.write_event(t, "diverged", {"reason": why}, level="error")
+        finally:
+            self.progress.close()
+        wall = time.perf_counter() - wall0
+        trace = self._trace_arrays(pieces, nw)
+        if status == "completed" and trace["t"].size:
+            _, _, mom = self._samples(q[None], v[None])
+            final = {"t": [t], "att_err": [float(np.linalg.norm(attitude_error(q_att_ref, q[3:7])))],
+                     "wheel_speed": [v[wheel_v]], "wheel_torque": [trace["wheel_torque"][-1]], "saturated": [False],
+                     "base_torque": [last_T], "momentum": [np.concatenate([mom[0, 0:3], mom[0, 6:9]])],
+                     "energy": [mom[0, 9]], "phase": [len(spec.phases) - 1]}
+            trace = self._trace_arrays([trace, {k: np.asarray(x) for k, x in final.items()}], nw)
+        return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
+
+    @staticmethod
+    def _trace_arrays(pieces: list[dict], nw: int) -> dict[str, np.ndarray]:
+        """The Trace.arrays() dict of the Python engine, from the loop's slices."""
+        def cat(key, width=None):
+            parts = [p[key] for p in pieces if key in p]
+            if parts:
+                return np.concatenate(parts)
+            return np.zeros((0,) if width is None else (0, width))
+
+        a = {k: cat(k) for k in ("t", "att_err", "energy")}
+        a["phase"] = cat("phase").astype(int)
+        a["wheel_speed"], a["wheel_torque"] = cat("wheel_speed", nw), cat("wheel_torque", nw)
+        a["saturated"] = cat("saturated").astype(bool)
+        a["base_torque"], a["momentum"] = cat("base_torque", 3), cat("momentum", 6)
+        n = a["t"].size
+        a.update({"joint_err": np.zeros((n, 0)), "ee_err": np.full(n, np.nan), "joint_torque": np.zeros((n, 0)),
+                  "modal_peak": np.zeros(n), "base_reaction": np.full((n, 6), np.nan), "segment": np.zeros(n, dtype=int)})
+        return a
+
+
+class _Stop(Exception):
+    """The compiled loop diverged (message = reason)."""

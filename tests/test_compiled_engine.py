@@ -1,0 +1,244 @@
+"""The compiled engine (sms_cli/sim/compiled) against independent implementations.
+
+- Kernels against Pinocchio on every shipped robot: forward dynamics (``pin.aba``), ``integrate``,
+  frame poses (``framesForwardKinematics``), momentum and energy (SystemModel, i.e. Pinocchio's
+  centroidal momentum and CRBA), parent-relative poses (frames.RelativePoses); the RKMK4 step
+  against the Python integrator.
+- The whole loop against the Python engine (the reference loop, every feature): the same
+  trace, metrics and recording on the Basilisk scenario and on a mission made to exercise what
+  the compiled loop implements (phases ended by settling, free-floating and free-flying phases,
+  thrusters, wheel friction, the speed limiter, recording decimation, divergence).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from mcap.reader import make_reader
+
+from sms_cli.errors import InputError
+from sms_cli.mission.load import load_mission
+from sms_cli.model import compile_system
+
+ROOT = Path(__file__).resolve().parents[1]
+ROBOT_MISSIONS = sorted(p.name for p in (ROOT / "missions").glob("*.yaml")
+                        if "robot:" in p.read_text())
+
+
+@pytest.fixture(scope="module", params=ROBOT_MISSIONS)
+def system(request):
+    return compile_system(load_mission(ROOT / "missions" / request.param))
+
+
+def _tree_args(T):
+    return T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.armature, T.idx_q, T.idx_v
+
+
+def test_kernels_equal_pinocchio(system):
+    from sms_cli.sim.compiled import dynamics as D
+    from sms_cli.sim.compiled.tree import flatten, frame_table
+    from sms_cli.sim.frames import RelativePoses
+
+    sm = system
+    m = sm.model
+    T = flatten(m)
+    n = T.parent.size
+    ws = D.workspace(n, m.nq, m.nv)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        q = pin.integrate(m, pin.neutral(m), rng.normal(size=m.nv))
+        v, tau, th = rng.normal(size=m.nv), rng.normal(size=m.nv), 0.3 * rng.normal(size=m.nv)
+        ref = pin.aba(m, m.createData(), q, v, tau)
+        out = np.empty(m.nv)
+        D.forward_dynamics(*_tree_args(T), q, v, tau, out, ws)
+        assert np.abs(out - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max())
+        qi = np.empty(m.nq)
+        D.integrate(T.kind, T.axis, T.idx_q, T.idx_v, q, th, qi)
+        assert np.abs(qi - pin.integrate(m, q, th)).max() <= 1e-14
+        # momentum about the CoM and the origin, kinetic energy (rigid part: v only, no modes)
+        R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
+        D.joint_transforms(T.kind, T.axis, T.place_R, T.place_p, T.idx_q, q, R_rel, p_rel)
+        me = np.empty(10)
+        D.momenta_energy(T.parent, T.kind, T.axis, T.inertia, T.mass, T.com, T.armature, T.idx_v, R_rel, p_rel, v, me, ws)
+        p, k_com, k_origin = sm.momenta(q, v, None)
+        scale = max(1.0, np.abs(me[:9]).max())
+        assert np.abs(me[:3] - p).max() <= 1e-12 * scale
+        assert np.abs(me[3:6] - k_com).max() <= 1e-12 * scale
+        assert np.abs(me[6:9] - k_origin).max() <= 1e-12 * scale
+        assert me[9] == pytest.approx(0.5 * v @ sm.rigid_mass_matrix(q) @ v, rel=1e-12)
+        # frame poses and parent-relative poses of every URDF link
+        links = list(sm.link_parents)
+        fids = [m.getFrameId(x) for x in links]
+        oR, op = np.empty((n, 3, 3)), np.empty((n, 3))
+        D.world_placements(T.parent, R_rel, p_rel, oR, op)
+        poses = np.empty((len(fids), 7))
+        D.frame_poses(oR, op, *frame_table(m, fids), poses)
+        d = m.createData()
+        pin.framesForwardKinematics(m, d, q)
+        for i, f in enumerate(fids):
+            M = d.oMf[f]
+            assert np.abs(poses[i, :3] - M.translation).max() <= 1e-12
+            assert np.abs(poses[i, 3:] - pin.Quaternion(M.rotation).coeffs()).max() <= 1e-12
+        parents = [links.index(sm.link_parents[x]) if sm.link_parents[x] in links else -1 for x in links]
+        rel = np.empty_like(poses)
+        D.relative_poses(poses, np.array(parents, dtype=np.int64), rel)
+        assert np.abs(rel - RelativePoses(parents, python_below=0)(poses)).max() <= 1e-14
+
+
+def test_rkmk4_step_equals_the_python_integrator():
+    from sms_cli.dynamics.integrator import State, rkmk4_step
+    from sms_cli.sim.compiled import dynamics as D
+    from sms_cli.sim.compiled.tree import flatten
+
+    sm = compile_system(load_mission(ROOT / "missions" / "chevallard_chaser.yaml"))
+    m = sm.model
+    T = flatten(m)
+    rng = np.random.default_rng(3)
+    q = pin.integrate(m, sm.q0, rng.normal(size=m.nv))
+    v, tau = rng.normal(size=m.nv), rng.normal(size=m.nv)
+    empty = np.zeros(0)
+    ref = rkmk4_step(m, State(q, v, empty, empty), 0.05, lambda q_, v_, e, ed: sm.forward_dynamics(q_, v_, e, ed, tau))
+    q1, v1 = np.empty(m.nq), np.empty(m.nv)
+    D.rkmk4_step(*_tree_args(T), q, v, tau, 0.05, q1, v1, D.workspace(T.parent.size, m.nq, m.nv))
+    assert np.abs(q1 - ref.q).max() <= 1e-13
+    assert np.abs(v1 - ref.v).max() <= 1e-12 * np.abs(ref.v).max()
+
+
+# ----------------------------------------------------------------------------- the whole loop
+EXERCISE = """\
+extends: basilisk_rw_reference.yaml
+name: compiled_engine_exercise
+initial:
+  base_angular_velocity: [0.0, 0.0, 0.0]
+wheels:
+  declared:
+    - {name: RW1, axis: [1, 0, 0], position: [0, 0, 0], mass: 9.0, spin_inertia: 0.0796, transverse_inertia: 0.0398,
+       max_torque: "0.2 N m", max_speed: "360 rpm", initial_speed: "100 rpm"}
+    - {name: RW2, axis: [0, 1, 0], position: [0, 0, 0], mass: 9.0, spin_inertia: 0.0796, transverse_inertia: 0.0398,
+       max_torque: "0.2 N m", max_speed: "360 rpm", initial_speed: "200 rpm"}
+    - {name: RW3, axis: [0, 0, 1], position: [0, 0, 0], mass: 9.0, spin_inertia: 0.0796, transverse_inertia: 0.0398,
+       max_torque: "0.2 N m", max_speed: "360 rpm", initial_speed: "300 rpm"}
+simulation:
+  dt: 0.05 s
+  control_rate: 5 Hz
+  record_rate: 3 Hz
+  engine: ENGINE
+  wheel_friction: {coulomb: 0.002, viscous: 0.0001}
+  phases:
+    - {name: slew, kind: slew, duration: 400 s, attitude: [0.2, -0.1, 0.3], until_settled: 2 deg, settle_time: 10 s}
+    - {name: coast, kind: hold, duration: 30 s, base_mode: free-floating}
+    - {name: thrust, kind: hold, duration: 40 s, base_mode: free-flying, attitude: [0, 0, 0]}
+"""
+
+
+def _run(tmp_path, text: str, name: str):
+    from sms_cli.sim.stage import run_simulation
+
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    loaded = load_mission(path)
+    section = run_simulation(loaded, tmp_path / name, progress=False)
+    return section, tmp_path / name
+
+
+def _messages(mcap: Path) -> dict[str, list]:
+    out: dict[str, list] = {}
+    with open(mcap, "rb") as f:
+        for _, channel, message in make_reader(f, validate_crcs=True).iter_messages(log_time_order=True):
+            out.setdefault(channel.topic, []).append((message.log_time, json.loads(message.data)))
+    return out
+
+
+def _close(a, b, path=""):
+    """Equal JSON trees, numbers to 1e-9 relative (the engines differ by round-off) or 2e-9 absolute
+    (/tf poses are written as integer counts of 1e-9, so round-off can flip the last count)."""
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), path
+        for k in a:
+            _close(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list):
+        assert len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b)):
+            _close(x, y, f"{path}[{i}]")
+    elif isinstance(a, float) or isinstance(b, float):
+        assert b == pytest.approx(a, rel=1e-9, abs=2e-9), path
+    else:
+        assert a == b, path
+
+
+def _compare_runs(tmp_path, text_of):
+    (py, py_dir), (cc, cc_dir) = (_run(tmp_path, text_of(e), e) for e in ("python", "compiled"))
+    assert py["timing"]["engine"] == "python" and cc["timing"]["engine"] == "compiled"
+    assert (py["status"], py["steps"]) == (cc["status"], cc["steps"])
+    assert cc["t_end_s"] == py["t_end_s"]
+    _close(py["overall"], cc["overall"], "overall")
+    _close(py["phases"], cc["phases"], "phases")
+    for k, x in py["conservation"].items():  # drifts are round-off on both sides: compare magnitudes
+        y = cc["conservation"][k]
+        if k.endswith("_abs") or k.endswith("_rel"):
+            assert (x is None) == (y is None) and (x is None or abs(x - y) <= 1e-9 * max(1.0, abs(x))), k
+        else:
+            assert y == pytest.approx(x, rel=1e-9, abs=1e-9), k
+    a, b = _messages(py_dir / "simulation.mcap"), _messages(cc_dir / "simulation.mcap")
+    assert a.keys() == b.keys()
+    for topic in a:
+        assert [t for t, _ in a[topic]] == [t for t, _ in b[topic]], topic
+        if topic in ("/events", "/log", "/robot_description"):
+            assert [m for _, m in a[topic]] == [m for _, m in b[topic]], topic
+            continue
+        for (_, x), (_, y) in zip(a[topic], b[topic]):
+            _close(x, y, topic)
+    return py, cc, a
+
+
+def test_compiled_loop_equals_the_python_loop_on_the_basilisk_scenario(tmp_path):
+    text = (ROOT / "missions" / "basilisk_rw_reference.yaml").read_text().replace("../robots/", str(ROOT / "robots") + "/")
+    py, cc, msgs = _compare_runs(tmp_path, lambda e: text.replace("  record_rate: null", f"  record_rate: null\n  engine: {e}"))
+    assert len(msgs["/tf"]) == 4 * 6001
+
+
+def test_compiled_loop_equals_the_python_loop_on_every_feature_it_implements(tmp_path):
+    (tmp_path / "basilisk_rw_reference.yaml").write_text(
+        (ROOT / "missions" / "basilisk_rw_reference.yaml").read_text().replace("../robots/", str(ROOT / "robots") + "/"))
+    py, cc, msgs = _compare_runs(tmp_path, lambda e: EXERCISE.replace("ENGINE", e))
+    slew, coast, thrust = py["phases"]
+    assert slew["duration_s"] < 400.0  # ended by until_settled
+    limit = 360 * np.pi / 30
+    assert 0.999 * limit < slew["wheel_speed_peak_rad_s"] <= limit  # the speed limiter acted and held
+    assert coast["attitude_torque_peak_Nm"] == 0.0 and thrust["attitude_torque_peak_Nm"] > 0.0
+    times = np.array([t for t, _ in msgs["/attitude"]]) / 1e9
+    assert np.allclose(np.diff(times)[1:-1], 1 / 3, atol=0.051)  # 3 Hz on a 0.05 s grid
+
+
+def test_divergence_stops_both_engines_at_the_same_step(tmp_path):
+    from sms_cli.errors import NumericalError
+
+    (tmp_path / "basilisk_rw_reference.yaml").write_text(
+        (ROOT / "missions" / "basilisk_rw_reference.yaml").read_text().replace("../robots/", str(ROOT / "robots") + "/"))
+    results = {}
+    for engine in ("python", "compiled"):
+        text = EXERCISE.replace("ENGINE", engine).replace("  record_rate: 3 Hz", "  record_rate: 3 Hz\n  divergence: {max_rate: 33.0}")
+        with pytest.raises(NumericalError):
+            _run(tmp_path, text, engine)
+        results[engine] = json.loads((tmp_path / engine / "results.json").read_text())["simulate"]
+        events = [m for _, m in _messages(tmp_path / engine / "simulation.mcap")["/events"]]
+        assert events[-1]["name"] == "diverged"
+    assert results["python"]["t_end_s"] == results["compiled"]["t_end_s"]
+    assert results["python"]["divergence"] == results["compiled"]["divergence"]
+
+
+def test_engine_choice(tmp_path):
+    from sms_cli.sim.engine import Simulation
+
+    loaded = load_mission(ROOT / "missions" / "caldera_s1_slew.yaml")
+    sm = compile_system(loaded)
+    spec = loaded.mission.simulation.model_copy(update={"engine": "compiled"})
+    with pytest.raises(InputError) as exc:
+        Simulation(sm, spec, None, progress=False).run()
+    assert "compiled engine cannot run this mission" in exc.value.render() and exc.value.exit_code == 2
+    assert "arm" in exc.value.render()
+    assert Simulation(sm, loaded.mission.simulation, None, progress=False).compiled_unsupported() is not None
