@@ -3,14 +3,19 @@
     /tmp/venv/bin/python benches/bench_basilisk.py [--repeat 3] [--profile]
 
 sms half (this interpreter): missions/basilisk_rw_reference.yaml, 6000 plant steps of 0.1 s with
-the controller at 10 Hz (one plant step per control period). Timed:
+the controller at 10 Hz (one plant step per control period), by both engines: the compiled one
+(numba; what ``sms simulate`` runs for this mission, the number compared with Basilisk) and the
+Python one (``engine: python``, the reference loop). Timed, per engine:
   - ``Simulation.run`` + ``finish`` with the MCAP recorder taking every step (the issue's "recording
-    on"; the number compared with Basilisk), and without a recorder;
-  - the same run instrumented (wrappers installed here, the engine is not edited) to split the cost
-    into plant (RKMK4 step with the forward dynamics, wheel speed limit, divergence check),
-    controller (sensors, reference, attitude law + allocation + torque clip), recording (state
-    → MCAP sample), metrics (per-tick trace: momentum, energy, errors) and the rest of the loop;
+    on"), and without a recorder; wall and process CPU time;
+  - an instrumented run (wrappers installed here, the engines are not edited) splitting the cost:
+    compiled — loop kernel (plant, controller, per-tick trace), recording (sample selection,
+    poses, bulk encoding, compression), metrics summary; Python — plant (RKMK4 step with the
+    forward dynamics, wheel speed limit, divergence check), controller (sensors, reference,
+    attitude law + allocation + torque clip), recording (state → MCAP sample), metrics (per-tick
+    trace: momentum, energy, errors) and the rest of the loop;
   - set-up (load + compile + recorder) and, once, the whole ``sms simulate`` CLI in a subprocess.
+The two engines' recordings are compared with each other, and the compiled one's with Basilisk.
 Basilisk half: benches/basilisk_reference.py run with the Basilisk environment's Python
 (``--bsk-python``, else $SMS_BSK_PYTHON, else /tmp/bskenv/bin/python); skipped with instructions
 when that environment does not exist. Its time is ``ExecuteSimulation`` only (recorders on every
@@ -45,7 +50,7 @@ TARGET_RATIO = 1.5
 
 
 # ----------------------------------------------------------------------------- sms side
-def _setup(record_path: Path | None):
+def _setup(record_path: Path | None, engine: str = "auto"):
     from sms_cli.mission.load import load_mission
     from sms_cli.model import compile_system
     from sms_cli.model.summary import model_summary
@@ -54,7 +59,7 @@ def _setup(record_path: Path | None):
 
     loaded = load_mission(MISSION)
     sm = compile_system(loaded)
-    spec = loaded.mission.simulation
+    spec = loaded.mission.simulation.model_copy(update={"engine": engine})
     rec = None
     if record_path is not None:
         rec = McapRecorder(record_path, mission_text=loaded.text, mission_name=loaded.mission.name,
@@ -65,12 +70,12 @@ def _setup(record_path: Path | None):
     return sm, spec, rec
 
 
-def _run_once(record_path: Path | None, profiler: cProfile.Profile | None = None) -> dict:
+def _run_once(record_path: Path | None, profiler: cProfile.Profile | None = None, engine: str = "auto") -> dict:
     """One sms run; returns wall times (s) of the set-up and of run (+ finish)."""
     from sms_cli.sim.engine import Simulation
 
     t0 = time.perf_counter()
-    sm, spec, rec = _setup(record_path)
+    sm, spec, rec = _setup(record_path, engine)
     sim = Simulation(sm, spec, rec, progress=False)
     t1, c1 = time.perf_counter(), time.process_time()
     if profiler is not None:
@@ -87,7 +92,7 @@ def _run_once(record_path: Path | None, profiler: cProfile.Profile | None = None
     if result.status != "completed":
         raise RuntimeError(f"sms run {result.status}: {result.divergence}")
     return {"setup_s": t1 - t0, "run_s": t2 - t1, "cpu_s": c2 - c1, "steps": result.steps,
-            "conservation": result.conservation}
+            "conservation": result.conservation, "engine": result.timing["engine"]}
 
 
 class _Timers:
@@ -124,7 +129,7 @@ class _Timers:
 
 
 def _instrumented_split(record_path: Path) -> dict:
-    """Run once with timing wrappers; returns seconds per bucket and the run's wall time."""
+    """Run the Python engine once with timing wrappers; returns seconds per bucket and the run's wall time."""
     import sms_cli.sim.engine as E
     from sms_cli.sim.actuators import WheelArray
     from sms_cli.sim.references import AttitudeProfile
@@ -141,7 +146,7 @@ def _instrumented_split(record_path: Path) -> dict:
     tm.wrap(E.Simulation, "_trace", "metrics")
     tm.wrap(E, "attitude_error", "metrics")
     try:
-        r = _run_once(record_path)
+        r = _run_once(record_path, engine="python")
     finally:
         tm.restore()
     # the wrappers' own cost, measured on an empty function, is charged to "rest" below
@@ -160,9 +165,28 @@ def _instrumented_split(record_path: Path) -> dict:
             "wrapper_s_per_call": per_call}
 
 
+def _compiled_split(record_path: Path) -> dict:
+    """Run the compiled engine once with wrappers on its three parts: the loop kernel (plant,
+    controller and per-tick trace), the recording (sample selection, poses, encoding,
+    compression) and the metrics summary; seconds per part and the run's wall time."""
+    import sms_cli.sim.compiled.loop as loop
+    import sms_cli.sim.engine as E
+    from sms_cli.sim.compiled.runner import CompiledSimulation
+
+    tm = _Timers()
+    tm.wrap(loop, "run_ticks", "loop kernel")
+    tm.wrap(CompiledSimulation, "_record", "recording")
+    tm.wrap(E, "build_result", "metrics")
+    try:
+        r = _run_once(record_path, engine="compiled")
+    finally:
+        tm.restore()
+    return {"buckets": tm.acc, "run_s": r["run_s"], "steps": r["steps"]}
+
+
 def _profile(record_path: Path, top: int) -> str:
     pr = cProfile.Profile()
-    r = _run_once(record_path, pr)
+    r = _run_once(record_path, pr, engine="python")
     buf = io.StringIO()
     st = pstats.Stats(pr, stream=buf)
     st.sort_stats("tottime")
@@ -187,7 +211,7 @@ def _micro(record_path: Path, n: int = 3000) -> list[tuple[str, float]]:
     from sms_cli.sim.interfaces import ArmRef, AttitudeRef
     from sms_cli.sim.metrics import Trace
 
-    sm, spec, rec = _setup(record_path)
+    sm, spec, rec = _setup(record_path, "python")
     sim = Simulation(sm, spec, rec, progress=False)
     s = State(sm.q0.copy(), sm.v0.copy(), sm.eta0.copy(), sm.etadot0.copy())
     tau = np.zeros(sm.nv)
@@ -314,52 +338,77 @@ def main(argv=None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="bench_basilisk_"))
     report: dict = {}
     try:
-        # --- sms
-        _run_once(tmp / "warm.mcap")  # imports, caches
-        rec_runs = [_run_once(tmp / f"rec{i}.mcap") for i in range(repeat)]
-        norec_runs = [_run_once(None) for _ in range(repeat)]
-        steps = rec_runs[0]["steps"]
-        best_rec = min(rec_runs, key=lambda r: r["run_s"])
-        best_norec = min(norec_runs, key=lambda r: r["run_s"])
-        us = lambda s: 1e6 * s / steps  # noqa: E731
-        sms_t = {"steps": steps, "us_per_step_record": us(best_rec["run_s"]), "us_per_step_no_record": us(best_norec["run_s"]),
-                 "us_per_step_with_setup": us(best_rec["run_s"] + best_rec["setup_s"]), "setup_s": best_rec["setup_s"],
-                 "all_record": [us(r["run_s"]) for r in rec_runs], "all_no_record": [us(r["run_s"]) for r in norec_runs],
-                 "cpu_us_per_step_record": min(us(r["cpu_s"]) for r in rec_runs),
-                 "cpu_us_per_step_no_record": min(us(r["cpu_s"]) for r in norec_runs),
-                 "real_time_factor_record": 600.0 / best_rec["run_s"], "conservation": best_rec["conservation"]}
+        # --- sms: the compiled engine (what `sms simulate` picks for this mission), then the Python loop
+        _run_once(tmp / "warm.mcap", engine="compiled")  # imports; compiles the kernels on a cold cache
+        _run_once(tmp / "warm.mcap", engine="python")
+        sms_t: dict = {}
+        for engine in ("compiled", "python"):
+            rec_runs = [_run_once(tmp / f"{engine}{i}.mcap", engine=engine) for i in range(repeat)]
+            norec_runs = [_run_once(None, engine=engine) for _ in range(repeat)]
+            steps = rec_runs[0]["steps"]
+            best_rec = min(rec_runs, key=lambda r: r["run_s"])
+            best_norec = min(norec_runs, key=lambda r: r["run_s"])
+            us = lambda s: 1e6 * s / steps  # noqa: E731
+            sms_t[engine] = {
+                "steps": steps, "us_per_step_record": us(best_rec["run_s"]), "us_per_step_no_record": us(best_norec["run_s"]),
+                "us_per_step_with_setup": us(best_rec["run_s"] + best_rec["setup_s"]), "setup_s": best_rec["setup_s"],
+                "all_record": [us(r["run_s"]) for r in rec_runs], "all_no_record": [us(r["run_s"]) for r in norec_runs],
+                "cpu_us_per_step_record": min(us(r["cpu_s"]) for r in rec_runs),
+                "cpu_us_per_step_no_record": min(us(r["cpu_s"]) for r in norec_runs),
+                "real_time_factor_record": 600.0 / best_rec["run_s"], "conservation": best_rec["conservation"],
+                "mcap": str(tmp / f"{engine}{rec_runs.index(best_rec)}.mcap")}
         split = _instrumented_split(tmp / "split.mcap")
-        sms_t["split_us_per_step"] = {k: us(v) for k, v in split["buckets"].items()}
+        py_t = sms_t["python"]
+        py_t["split_us_per_step"] = {k: us(v) for k, v in split["buckets"].items()}
         n_wrapped = sum(split["calls"].values())
-        sms_t["split_us_per_step"]["rest of loop"] = us(split["run_s"] - sum(split["buckets"].values()))
-        sms_t["split_instrumented_total"] = us(split["run_s"])
-        sms_t["split_wrapper_overhead_us_per_step"] = us(n_wrapped * split["wrapper_s_per_call"])
+        py_t["split_us_per_step"]["rest of loop"] = us(split["run_s"] - sum(split["buckets"].values()))
+        py_t["split_instrumented_total"] = us(split["run_s"])
+        py_t["split_wrapper_overhead_us_per_step"] = us(n_wrapped * split["wrapper_s_per_call"])
+        csplit = _compiled_split(tmp / "csplit.mcap")
+        cc_t = sms_t["compiled"]
+        cc_t["split_us_per_step"] = {k: us(v) for k, v in csplit["buckets"].items()}
+        cc_t["split_us_per_step"]["rest"] = us(csplit["run_s"] - sum(csplit["buckets"].values()))
+        cc_t["split_instrumented_total"] = us(csplit["run_s"])
         if not args.no_cli:
             t = time.perf_counter()
             proc = subprocess.run([sys.executable, "-m", "sms_cli", "simulate", str(MISSION), "-o", str(tmp / "cli"),
                                    "--no-progress"], capture_output=True, text=True, cwd=ROOT)
             wall = time.perf_counter() - t
-            sms_t["cli_wall_s"] = wall if proc.returncode == 0 else None
-        sms_hist = _read_mcap(tmp / f"rec{rec_runs.index(best_rec)}.mcap")
+            cc_t["cli_wall_s"] = wall if proc.returncode == 0 else None
+        sms_hist = _read_mcap(Path(cc_t["mcap"]))
+        py_hist = _read_mcap(Path(py_t["mcap"]))
         report["sms"] = sms_t
+        report["engines_difference"] = {k: float(np.abs(sms_hist[k] - py_hist[k]).max())
+                                        for k in ("sigma", "omega", "speeds", "torque")}
 
         print("sms  missions/basilisk_rw_reference.yaml: 6000 steps of 0.1 s, controller 10 Hz")
-        print(f"  Simulation.run, MCAP every step : {sms_t['us_per_step_record']:8.1f} us/step "
-              f"({', '.join(f'{x:.1f}' for x in sms_t['all_record'])}); {sms_t['real_time_factor_record']:.0f}x real time")
-        print(f"  Simulation.run, no recorder     : {sms_t['us_per_step_no_record']:8.1f} us/step "
-              f"({', '.join(f'{x:.1f}' for x in sms_t['all_no_record'])})")
-        print(f"  CPU time (process), best run    : {sms_t['cpu_us_per_step_record']:8.1f} us/step recording, "
-              f"{sms_t['cpu_us_per_step_no_record']:.1f} without")
-        print(f"  with set-up (load+compile+rec)  : {sms_t['us_per_step_with_setup']:8.1f} us/step (set-up {1e3 * sms_t['setup_s']:.0f} ms)")
-        if sms_t.get("cli_wall_s"):
-            print(f"  `sms simulate` end to end       : {sms_t['cli_wall_s']:.2f} s wall (interpreter, imports, plots, CSV included)")
-        print(f"  split (instrumented run, {sms_t['split_instrumented_total']:.1f} us/step; wrappers add "
-              f"≈{sms_t['split_wrapper_overhead_us_per_step']:.1f} us/step, charged to their buckets):")
+        for engine, label in (("compiled", "compiled engine (what `sms simulate` runs here)"),
+                              ("python", "Python engine (engine: python, the reference loop)")):
+            e = sms_t[engine]
+            print(f" {label}")
+            print(f"  Simulation.run, MCAP every step : {e['us_per_step_record']:8.1f} us/step "
+                  f"({', '.join(f'{x:.1f}' for x in e['all_record'])}); {e['real_time_factor_record']:.0f}x real time")
+            print(f"  Simulation.run, no recorder     : {e['us_per_step_no_record']:8.1f} us/step "
+                  f"({', '.join(f'{x:.1f}' for x in e['all_no_record'])})")
+            print(f"  CPU time (process), best run    : {e['cpu_us_per_step_record']:8.1f} us/step recording, "
+                  f"{e['cpu_us_per_step_no_record']:.1f} without")
+            print(f"  with set-up (load+compile+rec)  : {e['us_per_step_with_setup']:8.1f} us/step (set-up {1e3 * e['setup_s']:.0f} ms)")
+        if cc_t.get("cli_wall_s"):
+            print(f"  `sms simulate` end to end       : {cc_t['cli_wall_s']:.2f} s wall (interpreter, imports, plots, CSV included)")
+        print(f"  compiled engine split (instrumented run, {cc_t['split_instrumented_total']:.1f} us/step):")
+        for k in ("loop kernel", "recording", "metrics", "rest"):
+            print(f"    {k:<12} {cc_t['split_us_per_step'][k]:8.1f} us/step")
+        print(f"  Python engine split (instrumented run, {py_t['split_instrumented_total']:.1f} us/step; wrappers add "
+              f"≈{py_t['split_wrapper_overhead_us_per_step']:.1f} us/step, charged to their buckets):")
         for k in ("plant", "controller", "recording", "metrics", "rest of loop"):
-            print(f"    {k:<12} {sms_t['split_us_per_step'][k]:8.1f} us/step")
-        c = sms_t["conservation"]
+            print(f"    {k:<12} {py_t['split_us_per_step'][k]:8.1f} us/step")
+        d = report["engines_difference"]
+        print(f"  engines' recordings differ by at most: sigma {d['sigma']:.1e}, omega {d['omega']:.1e} rad/s, "
+              f"wheel speeds {d['speeds']:.1e} rad/s, torques {d['torque']:.1e} N m")
+        c = cc_t["conservation"]
         if c:
-            print(f"  conservation: {json.dumps(c)}")
+            print(f"  conservation (compiled): {json.dumps(c)}")
+        sms_t = cc_t  # the headline numbers below are the compiled engine's
 
         # --- Basilisk
         py = None if args.sms_only else _bsk_python(args.bsk_python)
@@ -381,13 +430,15 @@ def main(argv=None) -> int:
                   f"({', '.join(f'{x:.1f}' for x in bsk['all_execute'])})")
             print(f"  CPU time (process), best run    : {bsk['cpu_us_per_step_execute']:8.1f} us/step")
             print(f"  with set-up                     : {bsk['us_per_step_with_setup']:8.1f} us/step")
-            print(f"\nratio sms/Basilisk (recording on): {ratio:.1f}x  (target <= {TARGET_RATIO}x: "
+            print(f"\nratio sms (compiled engine)/Basilisk (recording on): {ratio:.2f}x  (target <= {TARGET_RATIO}x: "
                   f"{'met' if ratio <= TARGET_RATIO else 'NOT met'}); without sms recording: "
                   f"{sms_t['us_per_step_no_record'] / bsk['us_per_step_execute']:.1f}x")
             cpu_ratio = sms_t["cpu_us_per_step_record"] / bsk["cpu_us_per_step_execute"]
             report["cpu_ratio_record"] = cpu_ratio
             print(f"ratio of CPU times (robust when other processes share the machine): {cpu_ratio:.1f}x recording on, "
                   f"{sms_t['cpu_us_per_step_no_record'] / bsk['cpu_us_per_step_execute']:.1f}x without")
+            print(f"Python engine / Basilisk: {py_t['us_per_step_record'] / bsk['us_per_step_execute']:.1f}x recording on "
+                  f"(CPU {py_t['cpu_us_per_step_record'] / bsk['cpu_us_per_step_execute']:.1f}x)")
             print(f"history differences over {cmp_['samples']} common steps (max abs; sms read back from its MCAP, "
                   "which keeps 12 significant digits):")
             print(f"  sigma_BN (MRP)   {cmp_['sigma']:.3e}      attitude angle {cmp_['angle_rad']:.3e} rad")
@@ -396,7 +447,7 @@ def main(argv=None) -> int:
             print(f"  wheel torques    {cmp_['wheel_torque_Nm']:.3e} N m")
         if args.profile:
             print()
-            print(_profile(tmp / "prof.mcap", args.top))
+            print(_profile(tmp / "prof.mcap", args.top))  # the Python engine (the compiled loop is one call)
         if args.micro:
             rows = _micro(tmp / "micro.mcap")
             report["micro_us_per_call"] = dict(rows)
