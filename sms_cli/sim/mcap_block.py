@@ -99,6 +99,21 @@ def _shift(x, k):
 
 
 @njit(**_JIT)
+def _decimal_exponent(x):
+    """floor(log10(x)) for finite x > 0, from the binary exponent (off by one at worst next to a
+    power of ten, which format_g12 corrects)."""
+    _, e2 = math.frexp(x)  # x ∈ [2^(e2−1), 2^e2)
+    e = int(math.floor((e2 - 1) * 0.30102999566398120))
+    k = e + 1
+    if k >= 0:
+        if k <= 300 and x >= _POW10[k]:
+            e = k
+    elif -k <= 300 and x * _POW10[-k] >= 1.0:
+        e = k
+    return e
+
+
+@njit(**_JIT)
 def format_g12(x, out, pos):
     """Write x as C's ``%.12g`` would (``null`` when not finite); returns the new position."""
     if not math.isfinite(x):
@@ -116,7 +131,7 @@ def format_g12(x, out, pos):
         out[pos] = 45
         pos += 1
         x = -x
-    e = int(math.floor(math.log10(x)))
+    e = _decimal_exponent(x)
     m = _shift(x, 11 - e)
     if m < 1e11 - 0.5:  # log10 rounded up across a power of ten
         e -= 1

@@ -19,6 +19,7 @@ from numba import njit
 from sms_cli.sim.compiled.tree import FREE_FLYER, PRISMATIC, REVOLUTE, REVOLUTE_UNBOUNDED
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}  # numpy: no zero-division checks in the hot loops
+_HOT = dict(_JIT, inline="always")  # called in the innermost loop: no call boundary (it costs ~0.4 us with many array arguments)
 
 
 # ----------------------------------------------------------------------------- 3-D helpers
@@ -89,7 +90,7 @@ def cross(a, b, out):
 
 
 # ----------------------------------------------------------------------------- kinematics
-@njit(**_JIT)
+@njit(**_HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world)."""
     n = kind.shape[0]
@@ -359,7 +360,7 @@ def _solve_spd6(A, b, L, out):
         out[i] = x / L[i, i]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``."""
@@ -496,7 +497,7 @@ def quat_exp_mul(q, w, out):
     out[0], out[1], out[2], out[3] = x / nrm, y / nrm, z / nrm, ww / nrm
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def integrate(kind, axis, idx_q, idx_v, q, theta, out):
     """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
     n = kind.shape[0]
@@ -539,7 +540,7 @@ def integrate(kind, axis, idx_q, idx_v, q, theta, out):
             out[iq] = q[iq] + theta[iv]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def dexpinv_neg(theta, v, out):
     """dexp⁻¹_{−θ}(v) = v + ½[θ, v] + 1/12 [θ, [θ, v]] on the free-flyer block (first 6),
     identity on the joints (``sms_cli.dynamics.integrator._dexpinv_neg``)."""
@@ -561,7 +562,7 @@ def dexpinv_neg(theta, v, out):
     out[5] = w2 + 0.5 * b2 + (p0 * b1 - p1 * b0) / 12.0
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, vdot, ws):
     """vdot = FD(q, v, τ): joint transforms then ABA."""
     R_rel, p_rel = ws[8], ws[9]
@@ -572,35 +573,38 @@ def forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, id
 @njit(**_JIT)
 def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, dt, q_out, v_out, ws):
     """One RKMK4 step of size dt (s) under the held generalized forces τ
-    (``sms_cli.dynamics.integrator.rkmk4_step``, rigid branch)."""
+    (``sms_cli.dynamics.integrator.rkmk4_step``, rigid branch). The four stages are one loop so
+    that the inlined dynamics is compiled once."""
     nv = v.shape[0]
     h = 0.5 * dt
     st = ws[18]
-    a1, a2, a3, a4, th, vs, kk, k4 = st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7]
+    acc, th, vs, kk, ksum = st[0:4], st[4], st[5], st[6], st[7]
     qs = ws[19]
-    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, a1, ws)
+    for a in range(q.shape[0]):
+        qs[a] = q[a]
     for a in range(nv):
-        th[a] = h * v[a]
-        vs[a] = v[a] + h * a1[a]
-    integrate(kind, axis, idx_q, idx_v, q, th, qs)
-    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau, a2, ws)
-    dexpinv_neg(th, vs, kk)  # k2
-    for a in range(nv):
-        k4[a] = kk[a]  # keep k2 (k4's slot is free until the last stage)
-        th[a] = h * kk[a]
-        vs[a] = v[a] + h * a2[a]
-    integrate(kind, axis, idx_q, idx_v, q, th, qs)
-    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau, a3, ws)
-    dexpinv_neg(th, vs, kk)  # k3
-    for a in range(nv):
-        k4[a] += kk[a]  # k2 + k3
-        th[a] = dt * kk[a]
-        vs[a] = v[a] + dt * a3[a]
-    integrate(kind, axis, idx_q, idx_v, q, th, qs)
-    forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau, a4, ws)
-    dexpinv_neg(th, vs, kk)  # k4
+        vs[a] = v[a]
+        ksum[a] = 0.0
+    for stage in range(4):
+        if stage > 0:
+            integrate(kind, axis, idx_q, idx_v, q, th, qs)
+        forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau,
+                         acc[stage], ws)
+        if stage > 0:
+            dexpinv_neg(th, vs, kk)  # k2, k3, k4
+            if stage < 3:
+                for a in range(nv):
+                    ksum[a] += kk[a]  # k2 + k3
+        if stage < 3:
+            c = h if stage < 2 else dt
+            for a in range(nv):
+                th[a] = c * (v[a] if stage == 0 else kk[a])
+                vs[a] = v[a] + c * acc[stage, a]
     c = dt / 6.0
     for a in range(nv):
-        th[a] = c * (v[a] + 2.0 * k4[a] + kk[a])
-        v_out[a] = v[a] + c * (a1[a] + 2.0 * (a2[a] + a3[a]) + a4[a])
+        th[a] = c * (v[a] + 2.0 * ksum[a] + kk[a])
+        v_out[a] = v[a] + c * (acc[0, a] + 2.0 * (acc[1, a] + acc[2, a]) + acc[3, a])
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
+
+
+aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
