@@ -29,9 +29,11 @@ ROBOT_MISSIONS = sorted(p.name for p in (ROOT / "missions").glob("*.yaml")
                         if "robot:" in p.read_text())
 
 
-@pytest.fixture(scope="module", params=ROBOT_MISSIONS)
+@pytest.fixture(scope="module", params=ROBOT_MISSIONS + ["tests/data/hub_hinge.yaml"])
 def system(request):
-    return compile_system(load_mission(ROOT / "missions" / request.param))
+    """Every shipped robot, and the hinged spring panel (joint springs)."""
+    path = ROOT / request.param if "/" in request.param else ROOT / "missions" / request.param
+    return compile_system(load_mission(path))
 
 
 def _tree_args(T):
@@ -54,14 +56,15 @@ def test_kernels_equal_pinocchio(system):
         v, tau, th = rng.normal(size=m.nv), rng.normal(size=m.nv), 0.3 * rng.normal(size=m.nv)
         ref = pin.aba(m, m.createData(), q, v, tau)
         out = np.empty(m.nv)
-        D.forward_dynamics(*_tree_args(T), q, v, tau, out, ws)
+        R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
+        D.joint_transforms(T.kind, T.axis, T.place_R, T.place_p, T.idx_q, q, R_rel, p_rel)
+        D.aba_call(T.parent, T.kind, T.axis, T.inertia, T.armature, T.idx_v, R_rel, p_rel, v, tau, np.zeros((6, 6)),
+                   np.zeros(6), out, ws)
         assert np.abs(out - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max())
         qi = np.empty(m.nq)
         D.integrate(T.kind, T.axis, T.idx_q, T.idx_v, q, th, qi)
         assert np.abs(qi - pin.integrate(m, q, th)).max() <= 1e-14
         # momentum about the CoM and the origin, kinetic energy (rigid part: v only, no modes)
-        R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
-        D.joint_transforms(T.kind, T.axis, T.place_R, T.place_p, T.idx_q, q, R_rel, p_rel)
         me = np.empty(10)
         D.momenta_energy(T.parent, T.kind, T.axis, T.inertia, T.mass, T.com, T.armature, T.idx_v, R_rel, p_rel, v, me, ws)
         p, k_com, k_origin = sm.momenta(q, v, None)
@@ -89,23 +92,26 @@ def test_kernels_equal_pinocchio(system):
         assert np.abs(rel - RelativePoses(parents, python_below=0)(poses)).max() <= 1e-14
 
 
-def test_rkmk4_step_equals_the_python_integrator():
+def test_compiled_plant_step_equals_the_python_integrator(system):
+    """One RKMK4 step (modes, springs when the robot has them) against the Python integrator with
+    SystemModel.forward_dynamics (Pinocchio CRBA/NLE + the Schur complement on the modal block)."""
     from sms_cli.dynamics.integrator import State, rkmk4_step
-    from sms_cli.sim.compiled import dynamics as D
-    from sms_cli.sim.compiled.tree import flatten
+    from sms_cli.sim.compiled.plant import CompiledPlant, unsupported_reason
 
-    sm = compile_system(load_mission(ROOT / "missions" / "chevallard_chaser.yaml"))
-    m = sm.model
-    T = flatten(m)
+    sm = system
+    assert unsupported_reason(sm) is None  # every shipped robot fits the compiled plant
     rng = np.random.default_rng(3)
-    q = pin.integrate(m, sm.q0, rng.normal(size=m.nv))
-    v, tau = rng.normal(size=m.nv), rng.normal(size=m.nv)
-    empty = np.zeros(0)
-    ref = rkmk4_step(m, State(q, v, empty, empty), 0.05, lambda q_, v_, e, ed: sm.forward_dynamics(q_, v_, e, ed, tau))
-    q1, v1 = np.empty(m.nq), np.empty(m.nv)
-    D.rkmk4_step(*_tree_args(T), q, v, tau, 0.05, q1, v1, D.workspace(T.parent.size, m.nq, m.nv))
-    assert np.abs(q1 - ref.q).max() <= 1e-13
-    assert np.abs(v1 - ref.v).max() <= 1e-12 * np.abs(ref.v).max()
+    plant = CompiledPlant(sm)
+    for _ in range(3):
+        q = pin.integrate(sm.model, sm.q0, 0.3 * rng.normal(size=sm.nv))
+        s = State(q, 0.3 * rng.normal(size=sm.nv), 0.01 * rng.normal(size=sm.n_modes), 0.01 * rng.normal(size=sm.n_modes))
+        tau = rng.normal(size=sm.nv)
+        ref = rkmk4_step(sm.model, s, 0.02, lambda q_, v_, e, ed: sm.forward_dynamics(q_, v_, e, ed, tau))
+        out = plant.step(s, tau, 0.02)
+        assert np.abs(out.q - ref.q).max() <= 1e-13
+        assert np.abs(out.v - ref.v).max() <= 1e-12 * max(1.0, np.abs(ref.v).max())
+        if sm.n_modes:
+            assert np.abs(out.eta - ref.eta).max() <= 1e-13 and np.abs(out.etadot - ref.etadot).max() <= 1e-12
 
 
 # ----------------------------------------------------------------------------- the whole loop

@@ -186,6 +186,11 @@ class SystemModel:
 
     # ------------------------------------------------------------------ inertia
     @property
+    def base_modal_coupling(self) -> np.ndarray | None:
+        """B (n_modes × 6) when every appendage is on the base (η̈ = r_η − B v̇_base), else None."""
+        return self._base_B
+
+    @property
     def total_mass(self) -> float:
         return float(sum(self.model.inertias[i].mass for i in range(1, self.model.njoints)))
 

@@ -103,6 +103,12 @@ class Simulation:
         self.att_law = build_attitude_law(att_spec, sm) if att_spec else None
         self.arm_law = build_arm_law(spec.arm, sm) if spec.arm else None
         self.rr = build_resolved_rate(spec.resolved_rate, sm) if spec.resolved_rate else None
+        self.plant = None  # the compiled plant step, when the model allows it and the engine is not 'python'
+        if spec.engine != "python":
+            from sms_cli.sim.compiled.plant import CompiledPlant, unsupported_reason
+
+            if unsupported_reason(sm) is None:
+                self.plant = CompiledPlant(sm)
         self.ndi = None
         if spec.ndi is not None:
             from sms_cli.sim.laws.ndi import build_ndi
@@ -208,6 +214,11 @@ class Simulation:
         """The reference loop in Python (every feature)."""
         sm, spec = self.sm, self.spec
         s = State(sm.q0.copy(), sm.v0.copy(), sm.eta0.copy(), sm.etadot0.copy())
+        if self.plant is not None:
+            from sms_cli.sim.compiled.runner import compile_notice
+
+            with compile_notice():  # loads (on a cold cache: compiles) the plant kernel
+                self.plant.step(s, np.zeros(sm.nv), self.dt)
         trace = Trace()
         t = 0.0
         steps = 0
@@ -275,7 +286,10 @@ class Simulation:
                                 tau[sm.idx.wheels] = self.wheels.speed_limited(tau_w, ws, self.dt) + self.wheels.friction_torque(ws)
                         else:
                             tau = tau_tick
-                        s = rkmk4_step(sm.model, s, self.dt, lambda q, v, e, ed, _tau=tau: fd(q, v, e, ed, _tau))
+                        if self.plant is not None and not fixed:
+                            s = self.plant.step(s, tau, self.dt)
+                        else:
+                            s = rkmk4_step(sm.model, s, self.dt, lambda q, v, e, ed, _tau=tau: fd(q, v, e, ed, _tau))
                         t += self.dt
                         steps += 1
                         if rec_due is not None and rec_due(t):
@@ -316,6 +330,8 @@ class Simulation:
             self.sm.detach_payload(name)
         for name in phase.attach:
             self.sm.attach_payload(name)
+        if self.plant is not None and (phase.attach or phase.detach):
+            self.plant.refresh()
         if self.rec is not None:
             self.rec.write_event(t, "phase", phase_event(phase))
 
@@ -372,7 +388,8 @@ class Simulation:
             tr.base_reaction.append(np.full(6, np.nan))
 
     def _result(self, status, why, t, steps, trace: Trace, spans, wall) -> SimResult:
-        return build_result(self.spec, self.sm, status, why, t, steps, trace.arrays(), spans, wall)
+        engine = "python" if self.plant is None else "python, compiled plant"
+        return build_result(self.spec, self.sm, status, why, t, steps, trace.arrays(), spans, wall, engine)
 
 
 def phase_event(phase: PhaseSpec) -> dict:

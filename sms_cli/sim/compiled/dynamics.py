@@ -250,21 +250,6 @@ def force_cross(v, f, out):
 
 
 @njit(**_JIT)
-def act_matrix_inv(R, p, X):
-    """6×6 matrix of motion_act_inv: X = [[Rᵀ, −Rᵀ[p]×], [0, Rᵀ]]."""
-    X[:, :] = 0.0
-    for a in range(3):
-        for b in range(3):
-            X[a, b] = R[b, a]
-            X[3 + a, 3 + b] = R[b, a]
-    # −Rᵀ [p]× column b: −Rᵀ (p × e_b)
-    for a in range(3):
-        X[a, 3] = -(R[1, a] * p[2] - R[2, a] * p[1])  # p × e_x = (0, p2, −p1)
-        X[a, 4] = -(R[2, a] * p[0] - R[0, a] * p[2])  # p × e_y = (−p2, 0, p0)
-        X[a, 5] = -(R[0, a] * p[1] - R[1, a] * p[0])  # p × e_z = (p1, −p0, 0)
-
-
-@njit(**_JIT)
 def add_inertia_to_parent(R, p, Ia, J, K, out):
     """out += Xᵀ Ia X for X = motion_act_inv(R, p): a 6×6 inertia moved to the parent frame.
     By blocks: J = diag(R) Ia diag(Rᵀ) = [[A, B], [Bᵀ, C]], then with P = [p]×
@@ -310,12 +295,14 @@ def _subspace(kind, axis, S):
 
 # ----------------------------------------------------------------------------- dynamics
 @njit(**_JIT)
-def workspace(n, nq, nv):
-    """Scratch arrays for n bodies, reused by every kernel below (no allocation in the hot loop)."""
+def workspace(n, nq, nv, ne=0):
+    """Scratch arrays for n bodies (nq, nv, ne modes), reused by every kernel below (no allocation
+    in the hot loop)."""
     return (np.empty((n, 6)), np.zeros((n, 6)), np.empty((n, 6, 6)), np.empty((n, 6)), np.zeros((n, 6)),
             np.ones(n), np.zeros(n), np.empty((n, 6)), np.empty((n, 3, 3)), np.empty((n, 3)),
             np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty(6), np.empty(6), np.empty(6),
-            np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((8, nv)), np.empty(nq))
+            np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((8, nv)), np.empty(nq),
+            np.empty((10, ne)), np.empty(nv), np.zeros((6, 6)), np.zeros(6), np.empty(6))
 
 
 @njit(**_JIT)
@@ -361,9 +348,12 @@ def _solve_spd6(A, b, L, out):
 
 
 @njit(**_HOT)
-def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, vdot, ws):
+def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
-    no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``."""
+    no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
+    ``root_dI`` (6×6) is added to the root body's inertia and ``root_f`` (6) to its bias force,
+    both in the root frame: the mass matrix becomes H + [root_dI on the base block] and the
+    right-hand side τ − nle − [root_f; 0] (zeros for a plain rigid tree)."""
     vel, c, IA, pA, U, D, u, acc6 = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7]
     X, Ia, XtIa, tmp, pa, S = ws[10], ws[11], ws[12], ws[13], ws[14], ws[15]
     n = parent.shape[0]
@@ -376,7 +366,12 @@ def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, vdot
                 acc += inertia[i, a, b] * vel[i, b]
             tmp[a] = acc
         force_cross(vel[i], tmp, pA[i])
-        if kind[i] != FREE_FLYER:
+        if kind[i] == FREE_FLYER:
+            for a in range(6):
+                pA[i, a] += root_f[a]
+                for b in range(6):
+                    IA[i, a, b] += root_dI[a, b]
+        else:
             _subspace(kind[i], axis[i], S)
             qd = v[idx_v[i]]
             for a in range(6):
@@ -563,33 +558,82 @@ def dexpinv_neg(theta, v, out):
 
 
 @njit(**_HOT)
-def forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, vdot, ws):
-    """vdot = FD(q, v, τ): joint transforms then ABA."""
+def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+                    neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
+                    q, v, eta, etad, tau, vdot, etadd, ws):
+    """(v̇, η̈) of the hybrid model with appendages on the base (``SystemModel.forward_dynamics``):
+    (H − BᵀB) v̇ = τ − nle − [Bᵀ r_η + v_b ×* (Bᵀ η̇); 0] − springs, η̈ = r_η − B v̇_b,
+    r_η = −Ω² η − 2ζΩ η̇; the constant −BᵀB enters ABA as the root's inertia and the modal terms
+    as its bias force. ``modal_Bt`` is Bᵀ (6 × ne); ne = 0 and no springs is the rigid tree."""
+    ne = eta.shape[0]
+    tau_eff, root_dI, root_f, P = ws[21], ws[22], ws[23], ws[24]
+    r_eta = ws[20][9]
+    for a in range(v.shape[0]):
+        tau_eff[a] = tau[a]
+    for k in range(spring_v.shape[0]):
+        iv = spring_v[k]
+        tau_eff[iv] -= spring_k[k] * (q[spring_q[k]] - spring_rest[k]) + spring_c[k] * v[iv]
+    if ne:
+        for k in range(ne):
+            r_eta[k] = neg_omega2[k] * eta[k] + neg_2zo[k] * etad[k]
+        for a in range(6):
+            acc_p = 0.0
+            acc_r = 0.0
+            for k in range(ne):
+                acc_p += modal_Bt[a, k] * etad[k]
+                acc_r += modal_Bt[a, k] * r_eta[k]
+            P[a] = acc_p
+            root_f[a] = acc_r
+            for b in range(6):
+                root_dI[a, b] = -modal_BtB[a, b]
+        tmp = ws[13]
+        force_cross(v[0:6], P, tmp)  # v_b ×* P: the modal momentum carried by the moving base
+        for a in range(6):
+            root_f[a] += tmp[a]
     R_rel, p_rel = ws[8], ws[9]
     joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-    aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, vdot, ws)
+    aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau_eff, root_dI, root_f, vdot, ws)
+    for k in range(ne):
+        acc = r_eta[k]
+        for a in range(6):
+            acc -= modal_Bt[a, k] * vdot[a]
+        etadd[k] = acc
 
 
 @njit(**_JIT)
-def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, dt, q_out, v_out, ws):
+def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+               neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
+               q, v, eta, etad, tau, dt, q_out, v_out, eta_out, etad_out, ws):
     """One RKMK4 step of size dt (s) under the held generalized forces τ
-    (``sms_cli.dynamics.integrator.rkmk4_step``, rigid branch). The four stages are one loop so
-    that the inlined dynamics is compiled once."""
-    nv = v.shape[0]
+    (``sms_cli.dynamics.integrator.rkmk4_step``): the configuration moves on the manifold with the
+    dexp⁻¹ correction, velocities and modal states are plain vectors. The four stages are one loop
+    so that the inlined dynamics is compiled once."""
+    nv, ne = v.shape[0], eta.shape[0]
     h = 0.5 * dt
     st = ws[18]
     acc, th, vs, kk, ksum = st[0:4], st[4], st[5], st[6], st[7]
+    md = ws[20]  # rows 0-3: η̈ per stage, 4: η at the stage, 5: η̇ at the stage, 6-7: weighted slope sums
     qs = ws[19]
     for a in range(q.shape[0]):
         qs[a] = q[a]
     for a in range(nv):
         vs[a] = v[a]
         ksum[a] = 0.0
+    for k in range(ne):
+        md[4, k] = eta[k]
+        md[5, k] = etad[k]
+        md[6, k] = 0.0
+        md[7, k] = 0.0
     for stage in range(4):
         if stage > 0:
             integrate(kind, axis, idx_q, idx_v, q, th, qs)
-        forward_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, tau,
-                         acc[stage], ws)
+        hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+                        neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
+                        qs, vs, md[4], md[5], tau, acc[stage], md[stage], ws)
+        w = 1.0 if stage == 0 or stage == 3 else 2.0
+        for k in range(ne):
+            md[6, k] += w * md[5, k]
+            md[7, k] += w * md[stage, k]
         if stage > 0:
             dexpinv_neg(th, vs, kk)  # k2, k3, k4
             if stage < 3:
@@ -600,10 +644,17 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, i
             for a in range(nv):
                 th[a] = c * (v[a] if stage == 0 else kk[a])
                 vs[a] = v[a] + c * acc[stage, a]
+            for k in range(ne):
+                e_next = eta[k] + c * md[5, k]
+                md[5, k] = etad[k] + c * md[stage, k]
+                md[4, k] = e_next
     c = dt / 6.0
     for a in range(nv):
         th[a] = c * (v[a] + 2.0 * ksum[a] + kk[a])
         v_out[a] = v[a] + c * (acc[0, a] + 2.0 * (acc[1, a] + acc[2, a]) + acc[3, a])
+    for k in range(ne):
+        eta_out[k] = eta[k] + c * md[6, k]
+        etad_out[k] = etad[k] + c * md[7, k]
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
 
 

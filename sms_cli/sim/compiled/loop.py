@@ -36,7 +36,8 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armat
     for k in range(wheel_v.shape[0]):
         tau[:] = 0.0
         tau[wheel_v[k]] = 1.0
-        aba_call(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, zero, tau, col, ws)
+        aba_call(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
+                 col, ws)
         out[k] = 1.0 / col[wheel_v[k]]
 
 
@@ -76,7 +77,10 @@ def run_ticks(
     tau = np.zeros(nv)
     q_new = np.empty(nq)
     v_new = np.empty(nv)
-    work = workspace(n, nq, nv)
+    work = workspace(n, nq, nv, 0)
+    # a rigid tree: no modes, no springs (the general step takes them)
+    no_Bt, no_BtB, no_e = np.zeros((6, 0)), np.zeros((6, 6)), np.zeros(0)
+    no_i = np.zeros(0, dtype=np.int64)
     R_rel = np.empty((n, 3, 3))
     p_rel = np.empty((n, 3))
     me = np.empty(10)
@@ -132,7 +136,8 @@ def run_ticks(
                 limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
-            rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, v, tau, dt, q_new, v_new, work)
+            rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, no_Bt, no_BtB, no_e, no_e,
+                       no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work)
             q[:] = q_new
             v[:] = v_new
             t += dt
@@ -173,7 +178,7 @@ def sample_outputs(parent, kind, axis, place_R, place_p, inertia, mass, com, arm
     (poses[s, k] = [x y z qx qy qz qw]), their poses in their parent frames (rows f_parent,
     −1: world) and [p, k about the CoM, k about the origin, energy]."""
     n = parent.shape[0]
-    ws = workspace(n, qs.shape[1], vs.shape[1])
+    ws = workspace(n, qs.shape[1], vs.shape[1], 0)
     R_rel = np.empty((n, 3, 3))
     p_rel = np.empty((n, 3))
     oR = np.empty((n, 3, 3))

@@ -1,0 +1,66 @@
+"""One RKMK4 plant step of a SystemModel in a single compiled call, for the Python loop.
+
+The Python loop keeps its controllers, sensors and recording, and hands the plant step to
+``dynamics.rkmk4_step`` (ABA with the base-mounted modal appendages as a constant root-inertia
+term and a root bias force, joint springs as generalized forces): one call instead of four
+forward dynamics and the stage arithmetic in Python. Supported: what ``tree.flatten`` accepts,
+with appendages (if any) all on the base; a held base (phase mode ``fixed``) stays in Python.
+Same results as ``sms_cli.dynamics.integrator.rkmk4_step`` with ``SystemModel.forward_dynamics``
+(tests/test_compiled_engine.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sms_cli.dynamics.integrator import State
+from sms_cli.model.system import SystemModel
+
+
+def unsupported_reason(sm: SystemModel) -> str | None:
+    """Why the compiled plant cannot step this model (None when it can)."""
+    from sms_cli.sim.compiled.tree import unsupported_reason as tree_reason
+
+    why = tree_reason(sm.model)
+    if why:
+        return why
+    if sm.n_modes and sm.base_modal_coupling is None:
+        return "an appendage is not mounted on the base"
+    return None
+
+
+class CompiledPlant:
+    """RKMK4 steps of ``sm`` (see the module docstring). Call ``refresh()`` after a payload is
+    attached or released (the body inertias change)."""
+
+    def __init__(self, sm: SystemModel):
+        from sms_cli.sim.compiled.dynamics import workspace
+
+        self.sm = sm
+        ne = sm.n_modes
+        B = sm.base_modal_coupling if ne else np.zeros((0, 6))
+        omega = np.concatenate([a.omega for a in sm.appendages]) if ne else np.zeros(0)
+        zeta = np.concatenate([a.zeta for a in sm.appendages]) if ne else np.zeros(0)
+        self._modal = (np.ascontiguousarray(B.T), np.ascontiguousarray(B.T @ B), -(omega**2), -2.0 * zeta * omega)
+        sp = sm.springs
+        self._springs = (np.array([x.v_index for x in sp], dtype=np.int64), np.array([x.q_index for x in sp], dtype=np.int64),
+                         np.array([x.stiffness for x in sp], float), np.array([x.damping for x in sp], float),
+                         np.array([x.rest for x in sp], float))
+        self.refresh()
+        self._ws = workspace(self._tree[0].size, sm.nq, sm.nv, ne)
+
+    def refresh(self) -> None:
+        """Re-read the model (body inertias change when payloads are attached or released)."""
+        from sms_cli.sim.compiled.tree import flatten
+
+        T = flatten(self.sm.model)
+        self._tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.armature, T.idx_q, T.idx_v)
+
+    def step(self, s: State, tau: np.ndarray, dt: float) -> State:
+        """The state after one RKMK4 step of dt (s) under the held generalized forces tau (nv)."""
+        from sms_cli.sim.compiled.dynamics import rkmk4_step
+
+        out = State(np.empty_like(s.q), np.empty_like(s.v), np.empty_like(s.eta), np.empty_like(s.etadot))
+        rkmk4_step(*self._tree, *self._modal, *self._springs, s.q, s.v, s.eta, s.etadot,
+                   np.ascontiguousarray(tau, dtype=float), float(dt), out.q, out.v, out.eta, out.etadot, self._ws)
+        return out
