@@ -4,7 +4,9 @@ recording (MCAP) and metrics. CPU time (process_time) is reported next to wall t
 the machine may be shared. The engine column says which loop ran (simulation.engine: auto);
 for the compiled engine the whole loop is one kernel call, so "plant" holds plant, controller
 and per-tick trace together, "metrics" the summary. Each mission runs twice; the second run is
-reported (the first loads the compiled kernels, and compiles them on a cold cache).
+reported (the first loads the compiled kernels, and compiles them on a cold cache). Engines:
+compiled = the compiled loop; py+plant = the Python loop with the compiled plant step;
+python = Python and Pinocchio only (simulation.engine: python).
 
 Usage: python benches/bench_simulate.py [mission.yaml ...] [--no-record]
 """
@@ -21,6 +23,7 @@ sys.path.insert(0, str(ROOT))
 
 import sms_cli.sim.compiled.loop as compiled_loop  # noqa: E402
 import sms_cli.sim.engine as engine  # noqa: E402
+from sms_cli.sim.compiled.plant import CompiledPlant  # noqa: E402
 from sms_cli.sim.compiled.runner import CompiledSimulation  # noqa: E402
 from sms_cli.mission.load import load_mission  # noqa: E402
 from sms_cli.model import compile_system  # noqa: E402
@@ -63,6 +66,8 @@ def bench(path: Path, record: bool) -> dict:
     cls._record = timer.wrap("recording", saved["_record"])
     cls._trace = timer.wrap("metrics", saved["_trace"])
     orig_kernel, orig_crec, orig_result = compiled_loop.run_ticks, CompiledSimulation._record, engine.build_result
+    orig_plant = CompiledPlant.step
+    CompiledPlant.step = timer.wrap("plant", orig_plant)
     compiled_loop.run_ticks = timer.wrap("plant", orig_kernel)
     CompiledSimulation._record = timer.wrap("recording", orig_crec)
     engine.build_result = timer.wrap("metrics", orig_result)
@@ -89,6 +94,7 @@ def bench(path: Path, record: bool) -> dict:
     finally:
         engine.rkmk4_step = orig_step
         compiled_loop.run_ticks, CompiledSimulation._record, engine.build_result = orig_kernel, orig_crec, orig_result
+        CompiledPlant.step = orig_plant
         for name, fn in saved.items():
             setattr(cls, name, fn)
     n = max(res.steps, 1)
@@ -104,13 +110,14 @@ def main() -> None:
     paths = [Path(a) for a in args] or sorted(p for p in (ROOT / "missions").glob("*.yaml")
                                               if load_mission(p).mission.simulation is not None)
     print(f"recording {'on' if record else 'off'}; µs per plant step (CPU unless noted); RTF = simulated / elapsed time")
-    head = f"{'mission':<28}{'engine':>9}{'steps':>7}{'dt':>7}{'wall':>8}{'cpu':>8}{'RTF cpu':>9}{'RTF wall':>9}" \
+    head = f"{'mission':<28}{'engine':>10}{'steps':>7}{'dt':>7}{'wall':>8}{'cpu':>8}{'RTF cpu':>9}{'RTF wall':>9}" \
            f"{'plant':>8}{'control':>9}{'record':>8}{'metrics':>9}{'other':>8}"
     print(head)
     for p in paths:
         bench(p, record)
         r = bench(p, record)
-        print(f"{r['mission']:<28}{r['engine']:>9}{r['steps']:>7}{r['dt']:>7.3g}{r['wall_us']:>8.1f}{r['cpu_us']:>8.1f}{r['rtf_cpu']:>9.1f}"
+        short = {"compiled": "compiled", "python": "python", "python, compiled plant": "py+plant"}[r["engine"]]
+        print(f"{r['mission']:<28}{short:>10}{r['steps']:>7}{r['dt']:>7.3g}{r['wall_us']:>8.1f}{r['cpu_us']:>8.1f}{r['rtf_cpu']:>9.1f}"
               f"{r['rtf_wall']:>9.1f}{r['plant']:>8.1f}{r['controller']:>9.1f}{r['recording']:>8.1f}{r['metrics']:>9.1f}"
               f"{r['other']:>8.1f}")
 
