@@ -97,6 +97,10 @@ class Simulation:
         self.spec = spec
         self.rec = recorder
         self._progress_flag = progress
+        if recorder is not None:
+            from sms_cli.sim.record_buffer import RecordBuffer
+
+            self._buffer = RecordBuffer(sm, recorder)
         self.sensors = Sensors(sm, spec.sensors)
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
         att_spec = self.att_spec = attitude_from_gains(results_dir) if spec.attitude == "from_gains" else spec.attitude
@@ -119,8 +123,6 @@ class Simulation:
         self.total_time = sum(p.duration for p in spec.phases)
         self.progress = Progress(self.total_time, progress)
         self.arm_names = [a.name for a in sm.arm]
-        self.link_names = list(sm.link_parents)
-        self.link_fids = [sm.model.getFrameId(n) for n in self.link_names]
         self._tau = np.zeros(sm.nv)
         self._fixed = False
         self._segment = 0
@@ -167,24 +169,18 @@ class Simulation:
 
     # ------------------------------------------------------------------ recording
     def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec) -> None:
-        rec = self.rec
-        m, d = self.sm.model, self.sm.data
-        pin.framesForwardKinematics(m, d, s.q)
-        poses = np.empty((len(self.link_fids), 7))
-        for i, fid in enumerate(self.link_fids):
-            M = d.oMf[fid]
-            poses[i, :3] = M.translation
-            poses[i, 3:] = pin.Quaternion(M.rotation).coeffs()
+        """Queue the sample at t (reserved with ``recorder.take``); written in blocks by the buffer."""
         p, k, _ = self._momentum(t, s)
         reaction = None
         if self._fixed:
             vd, ed = self.sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, self._tau)
             reaction = self.sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
-        scalars = numeric_topics(self.sm, q=s.q, v=s.v, wheel_torque=np.asarray(tau_w, float), ref_quat=att_ref.quat,
-                                 err_vec=att_err_vec, momentum_p=p, momentum_k=k,
-                                 ee=d.oMf[self.sm.ee_frame_id].translation, joint_torque=np.asarray(tau_m, float),
-                                 joint_ref=arm_ref.q, eta=s.eta, base_reaction=reaction)
-        rec.write_step(t, transforms=poses, scalars=scalars)
+        self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction)
+
+    def _event(self, t: float, name: str, detail: dict, level: str = "info") -> None:
+        """An /events record, after the samples queued before it."""
+        self._buffer.flush()
+        self.rec.write_event(t, name, detail, level=level)
 
     # ------------------------------------------------------------------ engines
     def compiled_unsupported(self) -> str | None:
@@ -228,7 +224,7 @@ class Simulation:
         status, why = "completed", ""
         phase_spans: list[tuple[int, float, float]] = []
         wall0 = time.perf_counter()
-        if self.rec is not None and self.rec.due(t):  # the initial state is part of the recording
+        if self.rec is not None and self.rec.take(t):  # the initial state is part of the recording
             n_arm = len(q_arm_ref)
             self._record(t, s, AttitudeProfile(q_att_ref, None, "step", None).at(0.0),
                          ArmRef(q_arm_ref.copy(), np.zeros(n_arm), np.zeros(n_arm)), np.zeros(self.wheels.n),
@@ -275,7 +271,7 @@ class Simulation:
                     if self.wheels.n and not wheels_live:
                         tau_tick[sm.idx.wheels] = tau_w
                     fd = self.sm.forward_dynamics_fixed_base if fixed else self.sm.forward_dynamics
-                    rec_due = self.rec.due if self.rec is not None else None
+                    rec_take = self.rec.take if self.rec is not None else None
                     for _ in range(self.n_sub):
                         if wheels_live or spec.disturbances:
                             tau = tau_tick.copy()
@@ -292,7 +288,7 @@ class Simulation:
                             s = rkmk4_step(sm.model, s, self.dt, lambda q, v, e, ed, _tau=tau: fd(q, v, e, ed, _tau))
                         t += self.dt
                         steps += 1
-                        if rec_due is not None and rec_due(t):
+                        if rec_take is not None and rec_take(t):
                             self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]))
                     self._check(s)
                     self.progress.update(t)
@@ -309,9 +305,11 @@ class Simulation:
         except Diverged as exc:
             status, why = "diverged", str(exc)
             if self.rec is not None:
-                self.rec.write_event(t, "diverged", {"reason": why}, level="error")
+                self._event(t, "diverged", {"reason": why}, level="error")
         finally:
             self.progress.close()
+            if self.rec is not None:
+                self._buffer.flush()
         wall = time.perf_counter() - wall0
         sensed = self.sensors.measure(t, s.q, s.v, s.eta, s.etadot) if status == "completed" else None
         if sensed is not None and trace.t:
@@ -333,7 +331,7 @@ class Simulation:
         if self.plant is not None and (phase.attach or phase.detach):
             self.plant.refresh()
         if self.rec is not None:
-            self.rec.write_event(t, "phase", phase_event(phase))
+            self._event(t, "phase", phase_event(phase))
 
     def _control(self, phase: PhaseSpec, s, att_ref, arm_ref):
         """Controller outputs held over the control period: wheel torques, joint torques, base wrench."""

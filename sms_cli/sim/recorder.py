@@ -390,6 +390,21 @@ class McapRecorder:
         """Whether ``write_step(t, ...)`` would record a sample (lets the caller skip building it)."""
         return t >= self._next_t
 
+    def take(self, t: float) -> bool:
+        """Offer time t for a sample to be written later with ``write_block`` (one ``write_step``
+        call's worth of decimation): True reserves it, and the next due time moves on."""
+        self._calls += 1
+        self._t_seen = t
+        if t < self._next_t:
+            return False
+        self._reserve(t)
+        return True
+
+    def _reserve(self, t: float) -> None:
+        if self._t0 is None:
+            self._t0 = t
+        self._next_t = self._next_due(t, self._t0)
+
     def write_step(
         self,
         t: float,
@@ -477,25 +492,26 @@ class McapRecorder:
 
     # ------------------------------------------------------------------ blocks (compiled engine)
     def select(self, times: np.ndarray) -> np.ndarray:
-        """Offer successive times at once: the indices of those ``write_step`` would record, one
-        call each (counted as offered, as ``write_step`` counts its calls). Record them with
-        ``write_block``; the decimation state advances there."""
+        """Offer successive times at once (``take`` for each): the indices of those reserved for
+        a sample, which ``write_block`` then records."""
         times = np.asarray(times, dtype=float)
         if times.size == 0:
             return np.zeros(0, dtype=np.intp)
         self._calls += times.size
         self._t_seen = float(times[-1])
         if not self._period:
-            return np.nonzero(times >= self._next_t)[0]
+            picked = np.nonzero(times >= self._next_t)[0]
+            if picked.size:
+                self._reserve(float(times[picked[-1]]))
+            return picked
         picked = []
-        nxt, t0, i = self._next_t, self._t0, 0
+        i = 0
         while True:
-            i = max(i, int(np.searchsorted(times, nxt, side="left")))  # first offer with t ≥ the next due time
+            i = max(i, int(np.searchsorted(times, self._next_t, side="left")))  # first offer at or after the due time
             if i >= times.size:
                 break
             picked.append(i)
-            t0 = float(times[i]) if t0 is None else t0
-            nxt = self._next_due(float(times[i]), t0)
+            self._reserve(float(times[i]))
             i += 1
         return np.array(picked, dtype=np.intp)
 
@@ -566,7 +582,7 @@ class McapRecorder:
             self._last_ts = int(ts[-1])
             if self._t0 is None:
                 self._t0 = float(times[0])
-            self._next_t = self._next_due(float(times[-1]), self._t0)
+            self._next_t = max(self._next_t, self._next_due(float(times[-1]), self._t0))
         finally:
             self._end_busy()
 

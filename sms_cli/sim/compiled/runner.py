@@ -18,6 +18,7 @@ import numpy as np
 
 from sms_cli.model.system import SystemModel
 from sms_cli.sim.attitude_math import attitude_error
+from sms_cli.sim.compiled.kinematics import SampleKinematics
 from sms_cli.sim.schema import SimulationSpec
 
 CHUNK_STEPS = 20_000
@@ -72,39 +73,22 @@ class CompiledSimulation:
     def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder, progress, att_law,
                  chunk_steps: int = CHUNK_STEPS):
         from sms_cli.sim.actuators import WheelArray
-        from sms_cli.sim.compiled.tree import flatten, frame_table
         from sms_cli.sim.engine import Progress
 
         self.sm, self.spec, self.rec = sm, spec, recorder
         self.law = att_law
-        self.tree = flatten(sm.model)
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
-        self.links = list(sm.link_parents)
-        fids = [sm.model.getFrameId(n) for n in self.links] + [sm.ee_frame_id]
-        row = {name: i for i, name in enumerate(self.links)}
-        parent_rows = np.array([row.get(sm.link_parents[n], -1) for n in self.links] + [-1], dtype=np.int64)
-        self.frames = (*frame_table(sm.model, fids), parent_rows)
+        self.kinematics = SampleKinematics(sm)
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
 
     # ------------------------------------------------------------------ pieces
     def _tree_args(self):
-        T = self.tree
-        return (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.mass, T.com, T.armature, T.idx_q, T.idx_v)
+        return self.kinematics.tree
 
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """World poses (n, n_frames, 7) of the recorded links + end effector, the links' poses in
-        their parent links (same shape), and momenta (n, 10: p, k_CoM, k_origin, energy)."""
-        from sms_cli.sim.compiled.loop import sample_outputs
-
-        n = qs.shape[0]
-        poses = np.empty((n, len(self.frames[0]), 7))
-        rel = np.empty_like(poses)
-        mom = np.empty((n, 10))
-        sample_outputs(*self._tree_args(), *self.frames, np.ascontiguousarray(qs), np.ascontiguousarray(vs), poses, rel,
-                       mom)
-        return poses, rel, mom
+        return self.kinematics(qs, vs)
 
     def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks."""
@@ -138,7 +122,6 @@ class CompiledSimulation:
         from sms_cli.sim.references import AttitudeProfile
 
         sm, spec, wh = self.sm, self.spec, self.wheels
-        T = self.tree
         q, v = sm.q0.astype(float).copy(), sm.v0.astype(float).copy()
         nw = wh.n
         wheel_v = np.asarray(sm.idx.wheels, dtype=np.int64)
@@ -178,7 +161,7 @@ class CompiledSimulation:
                     tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
                           "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
                           "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m)}
-                    st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, T.nq)), np.empty((ms, T.nv)), np.empty((ms, nw))
+                    st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
                     ticks, n_steps, code = run_ticks(
                         *self._tree_args(), *wheel_args, law_on, thrusters, *law_args, q_ref, settle_tol,
                         float(phase.settle_time), t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
@@ -227,15 +210,15 @@ class CompiledSimulation:
         from sms_cli.sim.compiled.loop import run_ticks
         from sms_cli.sim.mcap_block import Templates, encode_records
 
-        sm, T, nw = self.sm, self.tree, self.wheels.n
-        q, v = sm.q0.astype(float).copy(), np.zeros(T.nv)
+        sm, nw = self.sm, self.wheels.n
+        q, v = sm.q0.astype(float).copy(), np.zeros(sm.nv)
         self._samples(q[None], v[None])
         e1, e2 = np.empty(1), np.empty((1, nw))
         run_ticks(*self._tree_args(), np.asarray(sm.idx.wheels, dtype=np.int64), np.zeros((nw, 3)), np.zeros((nw, nw)),
                   np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0, False, False, *self._law_args(),
                   q[3:7].copy(), -1.0, 0.0, 0.0, 1.0, 1, 0, 0, 1e9, q, v, np.zeros(4), np.ones(nw), np.array([np.nan]),
                   e1, e1, e2, e2, np.empty(1, dtype=np.bool_), np.empty((1, 3)), np.empty((1, 6)), e1,
-                  e1, np.empty((1, T.nq)), np.empty((1, T.nv)), e2)
+                  e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2)
         tpl = Templates([b"%.12g %d"])
         encode_records(tpl.lit, tpl.lit_start, tpl.lit_len, tpl.code, tpl.piece_start, np.zeros((1, 2)),
                        np.zeros(1, dtype=np.int64), 0, np.zeros(1, dtype=np.int64), np.empty(tpl.capacity(1), np.uint8),

@@ -1,0 +1,82 @@
+"""Samples of the Python loop held and written to MCAP in blocks (``McapRecorder.write_block``).
+
+The loop reserves a sample with ``recorder.take(t)`` and ``add``s its raw state here (a few
+array copies); every ``capacity`` samples, at each event and at the end, the block's link poses
+come from one compiled call (``SampleKinematics``; per-sample Pinocchio forward kinematics when
+the model does not fit the compiled kernels) and one compiled pass encodes the messages.
+Topics and values are those of ``sms_cli.sim.topics.numeric_topics``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from sms_cli.model.system import SystemModel
+from sms_cli.sim.topics import numeric_topics
+
+
+class RecordBuffer:
+    """Pending samples of one recording (see the module docstring)."""
+
+    def __init__(self, sm: SystemModel, recorder, capacity: int = 512):
+        from sms_cli.sim.compiled.tree import unsupported_reason
+
+        self.sm = sm
+        self.rec = recorder
+        self.capacity = capacity
+        self.kinematics = None
+        if unsupported_reason(sm.model) is None:
+            from sms_cli.sim.compiled.kinematics import SampleKinematics
+
+            self.kinematics = SampleKinematics(sm)
+        self.link_fids = [sm.model.getFrameId(n) for n in sm.link_parents]
+        self._rows: list[tuple] = []
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def add(self, t: float, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p, k,
+            reaction=None) -> None:
+        """One sample (copies of the arrays; ``reaction`` only while the base is held)."""
+        poses = None if self.kinematics is not None else self._pinocchio_poses(q)
+        self._rows.append((t, q.copy(), v.copy(), eta.copy(), np.array(wheel_torque, float), np.array(joint_torque, float),
+                           np.array(ref_quat, float), np.array(joint_ref, float), np.array(err_vec, float),
+                           np.array(p, float), np.array(k, float), None if reaction is None else np.array(reaction, float),
+                           poses))
+        if len(self._rows) >= self.capacity:
+            self.flush()
+
+    def _pinocchio_poses(self, q) -> np.ndarray:
+        """World poses of the links and the end effector at q (the fallback of the compiled kernels)."""
+        m, d = self.sm.model, self.sm.data
+        pin.framesForwardKinematics(m, d, q)
+        out = np.empty((len(self.link_fids) + 1, 7))
+        for i, fid in enumerate(self.link_fids + [self.sm.ee_frame_id]):
+            out[i] = pin.SE3ToXYZQUAT(d.oMf[fid])
+        return out
+
+    def flush(self) -> None:
+        """Write the pending samples (runs of equal shape: a held base adds /base/reaction)."""
+        rows, self._rows = self._rows, []
+        start = 0
+        for i in range(1, len(rows) + 1):
+            if i == len(rows) or (rows[i][11] is None) != (rows[start][11] is None):
+                self._write(rows[start:i])
+                start = i
+
+    def _write(self, rows: list[tuple]) -> None:
+        if not rows:
+            return
+        cols = list(zip(*rows))
+        t, q, v, eta, tw, tm, ref, jref, err, p, k = (np.array(c) for c in cols[:11])
+        reaction = None if cols[11][0] is None else np.array(cols[11])
+        if self.kinematics is not None:
+            world, rel, _ = self.kinematics(q, v)
+            transforms, relative = rel[:, :-1], True
+        else:
+            world = np.array(cols[12])
+            transforms, relative = world[:, :-1], False
+        scalars = numeric_topics(self.sm, q=q, v=v, wheel_torque=tw, ref_quat=ref, err_vec=err, momentum_p=p, momentum_k=k,
+                                 ee=world[:, -1, :3], joint_torque=tm, joint_ref=jref, eta=eta, base_reaction=reaction)
+        self.rec.write_block(t, transforms=transforms, scalars=scalars, relative=relative)
