@@ -90,94 +90,73 @@ def cross(a, b, out):
 
 
 # ----------------------------------------------------------------------------- kinematics
+@njit(**_JIT)
+def compose(R1, p1, R2, p2, R_out, p_out):
+    """(R_out, p_out) = (R1, p1) · (R2, p2): rotation R1 R2, translation p1 + R1 p2."""
+    for a in range(3):
+        acc = p1[a]
+        for c in range(3):
+            acc += R1[a, c] * p2[c]
+        p_out[a] = acc
+        for b in range(3):
+            acc = 0.0
+            for c in range(3):
+                acc += R1[a, c] * R2[c, b]
+            R_out[a, b] = acc
+
+
 @njit(**_HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
-    """Placement of each joint frame in its parent joint frame (the root's: in the world)."""
-    n = kind.shape[0]
+    """Placement of each joint frame in its parent joint frame (the root's: in the world):
+    the joint's fixed placement composed with its motion (rotation Rj, translation tj)."""
     Rj = np.empty((3, 3))
-    for i in range(n):
+    tj = np.zeros(3)
+    for i in range(kind.shape[0]):
         k = kind[i]
         iq = idx_q[i]
         if k == FREE_FLYER:
             quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], Rj)
+            tj[0], tj[1], tj[2] = q[iq], q[iq + 1], q[iq + 2]
+        elif k == PRISMATIC:
+            axis_rotation(axis[i], 1.0, 0.0, Rj)  # identity
             for a in range(3):
-                for b in range(3):
-                    acc = 0.0
-                    for c in range(3):
-                        acc += place_R[i, a, c] * Rj[c, b]
-                    R_out[i, a, b] = acc
-                acc = place_p[i, a]
-                for c in range(3):
-                    acc += place_R[i, a, c] * q[iq + c]
-                p_out[i, a] = acc
-            continue
-        if k == PRISMATIC:
-            x = q[iq]
-            for a in range(3):
-                acc = place_p[i, a]
-                for c in range(3):
-                    R_out[i, a, c] = place_R[i, a, c]
-                    acc += place_R[i, a, c] * axis[i, c] * x
-                p_out[i, a] = acc
-            continue
-        if k == REVOLUTE:
-            axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
-        else:  # REVOLUTE_UNBOUNDED: (cos, sin)
-            axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
-        for a in range(3):
-            for b in range(3):
-                acc = 0.0
-                for c in range(3):
-                    acc += place_R[i, a, c] * Rj[c, b]
-                R_out[i, a, b] = acc
-            p_out[i, a] = place_p[i, a]
+                tj[a] = axis[i, a] * q[iq]
+        else:
+            if k == REVOLUTE:
+                axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
+            else:  # REVOLUTE_UNBOUNDED: (cos, sin)
+                axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
+            tj[:] = 0.0
+        compose(place_R[i], place_p[i], Rj, tj, R_out[i], p_out[i])
 
 
 @njit(**_JIT)
 def world_placements(parent, R_rel, p_rel, oR, op):
     """World placement of each joint frame from the parent-relative ones (parents come first)."""
-    n = parent.shape[0]
-    for i in range(n):
+    for i in range(parent.shape[0]):
         pi = parent[i]
         if pi < 0:
             oR[i] = R_rel[i]
             op[i] = p_rel[i]
-            continue
-        for a in range(3):
-            acc = op[pi, a]
-            for c in range(3):
-                acc += oR[pi, a, c] * p_rel[i, c]
-            op[i, a] = acc
-            for b in range(3):
-                acc = 0.0
-                for c in range(3):
-                    acc += oR[pi, a, c] * R_rel[i, c, b]
-                oR[i, a, b] = acc
+        else:
+            compose(oR[pi], op[pi], R_rel[i], p_rel[i], oR[i], op[i])
 
 
 @njit(**_JIT)
 def frame_poses(oR, op, f_joint, f_R, f_p, out):
-    """World poses [x y z qx qy qz qw] of frames placed (f_R, f_p) in joints f_joint."""
+    """World poses [x y z qx qy qz qw] of frames placed (f_R, f_p) in joints f_joint (−1: the world)."""
     R = np.empty((3, 3))
+    p = np.empty(3)
     quat = np.empty(4)
     for k in range(f_joint.shape[0]):
         j = f_joint[k]
         if j < 0:
-            for a in range(3):
-                out[k, a] = f_p[k, a]
             R[:, :] = f_R[k]
+            p[:] = f_p[k]
         else:
-            for a in range(3):
-                acc = op[j, a]
-                for c in range(3):
-                    acc += oR[j, a, c] * f_p[k, c]
-                out[k, a] = acc
-                for b in range(3):
-                    acc = 0.0
-                    for c in range(3):
-                        acc += oR[j, a, c] * f_R[k, c, b]
-                    R[a, b] = acc
+            compose(oR[j], op[j], f_R[k], f_p[k], R, p)
         matrix_to_quat(R, quat)
+        out[k, 0:3] = p
         out[k, 3:7] = quat
 
 

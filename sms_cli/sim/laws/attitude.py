@@ -51,18 +51,11 @@ class TrackingError:
     __slots__ = ("q", "C", "omega_r", "domega_r", "dw", "qv", "qw")
 
     def __init__(self, s: Sensed, ref: AttitudeRef):
-        bx, by, bz, bw = _floats(s.quat)
-        nb = math.sqrt(bx * bx + by * by + bz * bz + bw * bw)
-        rx, ry, rz, rw = _floats(ref.quat)
-        nr = nb * math.sqrt(rx * rx + ry * ry + rz * rz + rw * rw)
-        # q_R⁻¹ ⊗ q_B (Hamilton, xyzw), normalised, w ≥ 0
-        x = (rw * bx - rx * bw - ry * bz + rz * by) / nr
-        y = (rw * by + rx * bz - ry * bw - rz * bx) / nr
-        z = (rw * bz - rx * by + ry * bx - rz * bw) / nr
-        w = (rw * bw + rx * bx + ry * by + rz * bz) / nr
-        if w < 0:
-            x, y, z, w = -x, -y, -z, -w
-        self.q = np.array([x, y, z, w])
+        from sms_cli.sim.compiled.control import error_quaternion
+
+        self.q = np.empty(4)
+        error_quaternion(np.asarray(s.quat, dtype=float), np.asarray(ref.quat, dtype=float), self.q)
+        w = float(self.q[3])
         self.qv = self.q[:3]
         self.qw = w
         self.C = None
