@@ -36,25 +36,44 @@ Both propositions are plain SDPs (notes 004 §5.3). What is added to the thesis,
   by α M◇ ⪯ Q_d ⪯ r M◇; without this bound γ-minimisation makes the NDO arbitrarily fast.
 * **Robustness (ρ).** The thesis (3.51)–(3.52) adds ρ I to diagonal blocks, omits the P_ε
   factor of P_εΔA_e and is scale dependent. ``relaxation="scaled"`` uses Petersen's lemma
-  with multipliers λ, δ > 0 (decision variables)::
+  with multipliers λ, δ > 0 (decision variables) on the *structured* variation
+  ΔA_e = GΔ_AN, ΔB_ε = D_gΔ_B (``_Uncertainty``; D_g = diag(g_B) per actuator)::
 
-      (E₁ΔB E₂ᵀ)^s ⪯ λρ₂² E₁E₁ᵀ + λ⁻¹E₂E₂ᵀ,    (E₂PΔA E₂ᵀ)^s ⪯ δ⁻¹E₂P²E₂ᵀ + δρ₁²E₂E₂ᵀ
+      (E₁D_gΔ_BE₂ᵀ)^s ⪯ λρ₂²E₁D_g²E₁ᵀ + λ⁻¹E₂E₂ᵀ,   (E₂PGΔ_ANE₂ᵀ)^s ⪯ δ⁻¹E₂PGGᵀPE₂ᵀ + δρ₁²E₂NᵀNE₂ᵀ
 
-  for every σ̄(ΔB) ≤ ρ₂, σ̄(ΔA) ≤ ρ₁, giving one LMI with two extra n_e-blocks (Schur).
-  ``relaxation="thesis"`` reproduces (3.52) (ρ₁ = 2 max σ̄(ΔA_e), ρ₂ = max σ̄(ΔB_ε)).
-  ρ is measured in the scaled coordinates, between each sampled linearisation and the
-  nominal one it is nearest to.
+  for every σ̄(Δ_B) ≤ ρ₂, σ̄(Δ_A) ≤ ρ₁, giving one LMI with two extra blocks (Schur). G selects
+  the acceleration rows of A_e and N = A_e[rows] (nominal): at rest ΔA_e = −Δ(M*⁻¹)S with the
+  constant stiffness/damping map S, so ρ₁ is the relative change of the inverse inertia
+  (dimensionless, independent of the state units). Why not the unstructured ΔA_e of norm ρ₁
+  (a first version): its δ-block alone, [[(PA_e − W_eC_e)^s + ρ₁²I,
+  P], [P, −I]] ≺ 0, is a necessary condition whose largest ρ₁ over all (P, W_e) (the quadratic
+  stability radius of the best observer) is 0.0022 on the test case of
+  ``test_several_linearisations_and_sampled_relaxation`` while its samples give ρ₁ = 0.014:
+  no observer gain tolerates every unstructured ΔA_e of that size, most of which no
+  configuration change produces (changes of the kinematic rows, or the same absolute change on
+  a small coupling entry as on a stiffness entry; restricting ΔA_e to the varying rows and
+  columns still gives only 0.0024). The relative form gives ρ₁ = 0.0033 there, radius 0.006.
+  Both ρ forms keep the exact per-actuator split of ``_build_structured`` (chapter 3).
+  ``relaxation="thesis"`` reproduces (3.52) (ρ₁ = 2 max σ̄(ΔA_e), ρ₂ = max σ̄(ΔB_ε), unstructured).
+  It is not a sufficient condition (P_εΔA_e has become ΔA_e) and is scale dependent: with
+  P_ε ⪯ E_e its observer block (P_εA_e − W_eC_e)^s + (ρ₁ + ρ₂)I ≺ 0 is feasible only for
+  ρ₁ + ρ₂ ≤ 0.0101 on that test case (samples: 0.062), so it needs samples about ten times
+  closer. ρ is measured in the scaled coordinates, between each sampled linearisation and the
+  nominal one it is nearest to. Either way the
+  guarantee at the samples is checked afterwards (``verify``: poles and the certificate of the
+  returned P at every sample).
 * **Scaling.** Time is scaled by ω_c (the controller disk radius) and the observer state by
   its initial-error bounds (x̃_i = x_i/b_i), so inertias from 1e-4 to 1e4 kg m²
   give O(1) data; actuator coordinates are scaled per actuator (unit-norm rows of B_ε, the
   weight moved into C_z, so the per-actuator structure and γ are unchanged). All outputs are
   mapped back: K_p = ω_c² K̃_p, K_v = ω_c K̃_v, L = ω_c T L̃, γ² = c_s²γ̃²/ω_c, P_ε = T⁻¹P̃T⁻¹.
-* **Solver.** The structured chapter 3 problem (relaxation 'none' or 'polytopic') is built as
+* **Solver.** The structured chapter 3 problem (relaxation 'none' or 'polytopic', or no samples) is built as
   numpy blocks (``direct.py``, identical to the cvxpy constraints of ``_build_structured``) and
   solved by the dedicated interior-point method of ``sdp.py`` (Schur complement of the ~450
   variables instead of Clarabel's KKT system with dense n(n+1)/2 blocks per cone: pulsar_simple
   2.3 s instead of 17–29 s). Its point is accepted only if every block is ⪰ 0 at it (each block
-  carries the EPS margin); otherwise, and for every other problem, cvxpy + Clarabel as before.
+  carries the EPS margin); otherwise, and for every other problem (the ρ forms, chapter 4), cvxpy +
+  Clarabel (``_build_structured`` for chapter 3, ``_build`` for chapter 4).
 """
 
 from __future__ import annotations
@@ -223,19 +242,74 @@ def _scale(req: SynthesisRequest) -> _Scaled:
     return _Scaled(models, samples, omega_c, T, tau_c, s_m, d, float(np.max(d)))
 
 
-def _rho(sc: _Scaled, relaxation: str) -> list[tuple[float, float]]:
-    """(ρ1, ρ2) per nominal model: largest σ̄(ΔA_e), σ̄(ΔB_ε) of the samples nearest to it."""
-    rho = [(0.0, 0.0) for _ in sc.models]
+@dataclass
+class _Uncertainty:
+    """The sampled variation around one nominal model, in scaled coordinates.
+
+    ΔA_e = G Δ_A N_A and ΔB_ε = diag(g_B) Δ_B N_B with σ̄(Δ_A) ≤ rho1, σ̄(Δ_B) ≤ rho2 for every
+    sample assigned to the model. G selects the rows of A_e that vary (the acceleration rows: the
+    kinematic rows ḟ = ḟ never do). When every sampled row block lies in the row space of the
+    nominal one, N_A = A_e[rows] and Δ_A = ΔA_e[rows] A_e[rows]⁺ is the relative change of the
+    inverse inertia (ΔA = −Δ(M*⁻¹)S with the constant stiffness/damping map S); otherwise
+    N_A = I (additive). ΔB_ε is additive (N_B = I: B_ε only enters the performance, and N_B =
+    A_e[rows], whose rows carry the modal stiffness ω², made the bound useless on pulsar_simple)
+    with per-actuator weights g_B (largest row variation, normalised to max 1).
+    'thesis': G = N = I and the printed (3.51): rho1 = 2 max σ̄(ΔA_e), rho2 = max σ̄(ΔB_ε)."""
+
+    rho1: float
+    rho2: float
+    G: np.ndarray
+    N_A: np.ndarray
+    N_B: np.ndarray
+    form: str  # 'relative', 'additive', 'unstructured' (thesis) or 'none'
+    g_B: np.ndarray | None = None  # per-actuator weights of ΔB_ε = diag(g_B) Δ_B (max 1)
+
+
+def _uncertainty(sc: _Scaled, relaxation: str) -> list[_Uncertainty]:
+    """Per nominal model: the variation of the samples nearest to it (see ``_Uncertainty``)."""
+    n_e = sc.models[0].n_e
+    eye = np.eye(n_e)
+    out = [_Uncertainty(0.0, 0.0, eye, eye, eye, "none") for _ in sc.models]
     if relaxation in ("none", "polytopic") or not sc.samples:
-        return rho
+        return out
+    groups: list[list[ErrorModel]] = [[] for _ in sc.models]
     for s in sc.samples:
-        d = [(np.linalg.norm(s.A_e - m.A_e, 2), np.linalg.norm(s.B_eps - m.B_eps, 2)) for m in sc.models]
-        i = int(np.argmin([a + b for a, b in d]))
-        r1, r2 = d[i]
-        rho[i] = (max(rho[i][0], r1), max(rho[i][1], r2))
-    if relaxation == "thesis":
-        rho = [(2 * a, b) for a, b in rho]
-    return rho
+        d = [np.linalg.norm(s.A_e - m.A_e, 2) + np.linalg.norm(s.B_eps - m.B_eps, 2) for m in sc.models]
+        groups[int(np.argmin(d))].append(s)
+    for k, (m, grp) in enumerate(zip(sc.models, groups)):
+        if not grp:
+            continue
+        dA = [s.A_e - m.A_e for s in grp]
+        dB = [s.B_eps - m.B_eps for s in grp]
+        if relaxation == "thesis":
+            out[k] = _Uncertainty(2 * max(np.linalg.norm(x, 2) for x in dA), max(np.linalg.norm(x, 2) for x in dB),
+                                  eye, eye, eye, "unstructured")
+            continue
+        scale_a = max(np.abs(m.A_e).max(), 1e-300)
+        rows = np.flatnonzero(np.max([np.abs(x).max(axis=1) for x in dA], axis=0) > 1e-12 * scale_a)
+        if len(rows) == 0:
+            rows = np.arange(n_e)
+        G = eye[:, rows]
+        AR = m.A_e[rows]
+        AR_pinv = np.linalg.pinv(AR, rcond=1e-10)
+        DA = [x[rows] @ AR_pinv for x in dA]
+        res = max(np.abs(D @ AR - x[rows]).max() for D, x in zip(DA, dA))
+        big = max([np.abs(x).max() for x in dA] + [1e-300])
+        # ΔB_ε = diag(g)Δ_B: each actuator's row weighted by its own largest variation, so that an
+        # actuator whose disturbance row barely changes does not pay for the one that changes most
+        g = np.max([np.linalg.norm(x, axis=1) for x in dB], axis=0)
+        g = np.maximum(g / max(g.max(), 1e-300), 1e-6)
+        rho2 = max(np.linalg.norm(x / g[:, None], 2) for x in dB)
+        if res <= 1e-8 * big:
+            out[k] = _Uncertainty(max(np.linalg.norm(D, 2) for D in DA), rho2, G, AR, eye, "relative", g)
+        else:
+            out[k] = _Uncertainty(max(np.linalg.norm(x[rows], 2) for x in dA), rho2, G, eye, eye, "additive", g)
+    return out
+
+
+def _rho(sc: _Scaled, relaxation: str) -> list[tuple[float, float]]:
+    """(ρ1, ρ2) per nominal model (see ``_Uncertainty`` for their meaning in each form)."""
+    return [(float(u.rho1), float(u.rho2)) for u in _uncertainty(sc, relaxation)]
 
 
 # ---------------------------------------------------------------------------------------
@@ -309,6 +383,7 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
             groups["observer_region"] += [Qd >> ra.alpha * Ms, Qd << ra.radius * Ms]
 
     obs_region = req.observer_region.scaled(sc.omega_c)
+    unc = _uncertainty(sc, req.relaxation)
     rows = 0
     for k, m in enumerate(sc.models):
         r1, r2 = rho[k]
@@ -335,17 +410,23 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
         Om = cp.bmat(rowsM)
         n_om = Om.shape[0]
         if req.relaxation == "scaled" and (r1 > 0 or r2 > 0):
+            # Petersen's lemma on the structured variation (``_Uncertainty``), multipliers λ, δ > 0:
+            #   (E₁Δ_BN_BE₂ᵀ)^s ⪯ λρ₂²E₁E₁ᵀ + λ⁻¹E₂N_BᵀN_BE₂ᵀ  (E₁ carries the weights g_B),
+            #   (E₂PGΔ_AN_AE₂ᵀ)^s ⪯ δ⁻¹E₂PGGᵀPE₂ᵀ + δρ₁²E₂N_AᵀN_AE₂ᵀ;  the λ⁻¹, δ⁻¹ terms by Schur
+            u = unc[k]
             lam = cp.Variable(nonneg=True)
             dl = cp.Variable(nonneg=True)
             E1 = np.zeros((n_om, n_q))
-            E1[n_q:2 * n_q, :] = np.eye(n_q)  # rows of ε̇_c
+            E1[n_q:2 * n_q, :] = np.diag(u.g_B)  # rows of ε̇_c, weighted per actuator
             E2 = np.zeros((n_om, n_e))
             E2[2 * n_q:2 * n_q + n_e, :] = np.eye(n_e)  # rows of ε_e
-            E2P = cp.bmat([[np.zeros((2 * n_q, n_e))], [P], [np.zeros((n_om - 2 * n_q - n_e, n_e))]])
-            top = Om + lam * (r2**2) * (E1 @ E1.T) + dl * (r1**2) * (E2 @ E2.T)
-            Om = cp.bmat([[top, E2, E2P],
-                          [E2.T, -lam * np.eye(n_e), np.zeros((n_e, n_e))],
-                          [E2P.T, np.zeros((n_e, n_e)), -dl * np.eye(n_e)]])
+            nb, ng = u.N_B.shape[0], u.G.shape[1]
+            E2NB = E2 @ u.N_B.T
+            E2PG = cp.bmat([[np.zeros((2 * n_q, ng))], [P @ u.G], [np.zeros((n_om - 2 * n_q - n_e, ng))]])
+            top = Om + lam * (r2**2) * (E1 @ E1.T) + dl * (r1**2) * (E2 @ u.N_A.T @ u.N_A @ E2.T)
+            Om = cp.bmat([[top, E2NB, E2PG],
+                          [E2NB.T, -lam * np.eye(nb), np.zeros((nb, ng))],
+                          [E2PG.T, np.zeros((ng, nb)), -dl * np.eye(ng)]])
             n_om = Om.shape[0]
         rows = max(rows, n_om)
         groups["performance"].append((Om + Om.T) / 2 << -EPS * np.eye(n_om))
@@ -360,14 +441,14 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
 
 
 def _structured(req: SynthesisRequest) -> bool:
-    """The chapter 3 problem without ρ terms (relaxation 'none' or 'polytopic') is solved in the
-    decoupled form of ``_build_structured``; the others in the full form of ``_build``."""
-    return req.variant == "ndi_observer" and req.relaxation in ("none", "polytopic")
+    """The chapter 3 problem without ρ terms (relaxation 'none' or 'polytopic', or no samples) is
+    solved in the decoupled form of ``_build_structured``; the others in the full form of ``_build``."""
+    return req.variant == "ndi_observer" and (req.relaxation in ("none", "polytopic") or not req.samples)
 
 
 def _build_structured(req: SynthesisRequest, sc: _Scaled, drop: frozenset[str] = frozenset(),
                       feasibility: bool = False):
-    """Chapter 3 without ρ terms, with the performance LMI Ω ≺ 0 split exactly (no loss).
+    """Chapter 3, with the performance LMI Ω ≺ 0 split exactly (no loss).
 
     With z ordered per actuator, the (z, γ) part of Ω is block diagonal: one 3×3 block
     Γ_i = [[(A_iQ_i + B_iW_i)^s, Q_ic_iᵀ], [c_iQ_i, −γ²]] per actuator, coupled to the observer
@@ -378,6 +459,13 @@ def _build_structured(req: SynthesisRequest, sc: _Scaled, drop: frozenset[str] =
     (n_e×n_e, per linearisation). Γ_i does not depend on the linearisation, so s is shared. The
     largest cone drops from 3n_q + n_e to max(2n_e, ...) (the observer disk). P ≻ 0 is implied by
     the observer disk LMI's diagonal block −rP ≺ 0 and is not stated again.
+
+    ρ terms (relaxation 'scaled' or 'thesis', see ``_Uncertainty``) keep this split: they add to
+    Γ_i a per-actuator diagonal term (λρ₂²g_i² on ε̇_c,i for 'scaled', ρ₂I₂ for 'thesis'), so a
+    linearisation with ρ gets its own Γ_i,k and s_k, and its observer block becomes
+    [[Φ_k + δρ₁²NᵀN, N_Bᵀ, PG], [N_B, −λI, 0], [GᵀP, 0, −δI]] ≺ 0 ('scaled'; the border is the
+    Schur form of λ⁻¹N_BᵀN_B + δ⁻¹PGGᵀP) or Φ_k + (ρ₁ + ρ₂)I ≺ 0 ('thesis'), with
+    Φ_k = (PA_e − W_eC_e)^s + B_εᵀdiag(s_k)B_ε. Same LMI as ``_build``'s, split exactly.
     """
     import cvxpy as cp
 
@@ -395,6 +483,11 @@ def _build_structured(req: SynthesisRequest, sc: _Scaled, drop: frozenset[str] =
                                "initial_conditions": [], "actuator_authority": [], "positivity": []}
     e2 = np.array([[0.0], [1.0], [0.0]])
     creg = req.controller_region.scaled(sc.omega_c)
+    unc = _uncertainty(sc, req.relaxation)
+    robust = [k for k, u in enumerate(unc) if u.rho1 > 0 or u.rho2 > 0]
+    s_k = {k: cp.Variable(n_q, nonneg=True) for k in robust}
+    lam = {k: cp.Variable(nonneg=True) for k in robust if req.relaxation == "scaled"}
+    dl = {k: cp.Variable(nonneg=True) for k in robust if req.relaxation == "scaled"}
     for i in range(n_q):
         Qi = cp.bmat([[_s(cp, q11[i]), _s(cp, q12[i])],
                       [_s(cp, q12[i]), _s(cp, q22[i])]])
@@ -405,6 +498,14 @@ def _build_structured(req: SynthesisRequest, sc: _Scaled, drop: frozenset[str] =
         Gi = cp.bmat([[Ni + Ni.T, cQ.T], [cQ, _s(cp, -g)]])
         Mi = cp.bmat([[-Gi - EPS * np.eye(3), e2], [e2.T, _s(cp, s[i])]])
         groups["performance"].append(_sym(cp, Mi) >> 0)
+        for k in robust:
+            r2 = unc[k].rho2
+            if k in lam:
+                extra = lam[k] * (r2 * unc[k].g_B[i]) ** 2 * np.diag([0.0, 1.0, 0.0])
+            else:
+                extra = r2 * np.diag([1.0, 1.0, 0.0])
+            Mik = cp.bmat([[-Gi - extra - EPS * np.eye(3), e2], [e2.T, _s(cp, s_k[k][i])]])
+            groups["performance"].append(_sym(cp, Mik) >> 0)
         groups["positivity"].append(_sym(cp, Qi) << Q_MAX * np.eye(2))
         # Q_i ≻ 0 is implied by the disk LMI of the controller region (diagonal block −rQ_i)
         groups["controller_region"] += region_lmis(cp, Ni, Qi, creg, EPS)
@@ -424,18 +525,31 @@ def _build_structured(req: SynthesisRequest, sc: _Scaled, drop: frozenset[str] =
     budget = c_e + (cp.sum(c_z) if req.tracking is not None else 0)
     groups["initial_conditions"].append(budget <= 1.0)
     oreg = req.observer_region.scaled(sc.omega_c)
-    for m in sc.models:
+    rows = 3 * n_q + n_e
+    for k, m in enumerate(sc.models):
         PA = P @ m.A_e - We @ m.C_e
         groups["observer_region"] += region_lmis(cp, PA.T, P, oreg, EPS)
-        Phi = PA + PA.T + m.B_eps.T @ cp.diag(s) @ m.B_eps
-        groups["performance"].append(_sym(cp, Phi) << -EPS * np.eye(n_e))
+        Phi = PA + PA.T + m.B_eps.T @ cp.diag(s_k.get(k, s)) @ m.B_eps
+        if k in lam:
+            u = unc[k]
+            nb, ng = u.N_B.shape[0], u.G.shape[1]
+            PG = P @ u.G
+            Om = cp.bmat([[Phi + dl[k] * u.rho1**2 * (u.N_A.T @ u.N_A), u.N_B.T, PG],
+                          [u.N_B, -lam[k] * np.eye(nb), np.zeros((nb, ng))],
+                          [PG.T, np.zeros((ng, nb)), -dl[k] * np.eye(ng)]])
+            groups["performance"].append(_sym(cp, Om) << -EPS * np.eye(n_e + nb + ng))
+            rows = max(rows, 3 * n_q + n_e + nb + ng)
+        elif k in s_k:
+            groups["performance"].append(_sym(cp, Phi + (unc[k].rho1 + unc[k].rho2) * np.eye(n_e)) << -EPS * np.eye(n_e))
+        else:
+            groups["performance"].append(_sym(cp, Phi) << -EPS * np.eye(n_e))
     if "observer_region" in drop:
         groups["positivity"].append(P >> EPS * np.eye(n_e))
     cons = [c for name, cs in groups.items() if name not in drop for c in cs]
     prob = cp.Problem(cp.Minimize(0 if feasibility else g), cons)
     var = {"q11": q11, "q12": q12, "q22": q22, "wp": wp, "wv": wv, "P": P, "We": We, "g": g, "Qd": None,
            "s": s, "c_e": c_e, "c_z": c_z}
-    return prob, var, groups, 3 * n_q + n_e
+    return prob, var, groups, rows
 
 
 def _sym(cp, M):
@@ -455,7 +569,9 @@ def _bzd(m: ErrorModel, sc: _Scaled) -> np.ndarray:
 
 
 def _builder(req, sc, rho, drop: frozenset[str] = frozenset(), feasibility: bool = False):
-    if _structured(req):
+    """Chapter 3 (every relaxation) in the split form of ``_build_structured``, chapter 4 in the
+    full form of ``_build`` (``rho`` is informative: both recompute the uncertainty)."""
+    if req.variant == "ndi_observer":
         return _build_structured(req, sc, drop, feasibility)
     return _build(req, sc, rho, drop, feasibility)
 
@@ -468,8 +584,12 @@ def _solve(prob, max_iter: int = 200) -> float:
     t0 = time.perf_counter()
     # 1e-7: verification recomputes every guarantee from the gains, and the certificate check
     # needs the solver's γ to 0.1 %; tighter tolerances only add iterations
+    # a KKT factorisation failure at the first iterations (pulsar_simple's full form) goes away
+    # with a stronger static regularisation of the KKT system (default 1e-8)
     for opts in ({"max_iter": max_iter, "tol_gap_abs": 1e-7, "tol_gap_rel": 1e-7, "tol_feas": 1e-7},
-                 {"max_iter": 2 * max_iter}):
+                 {"max_iter": 2 * max_iter},
+                 {"max_iter": 2 * max_iter, "tol_gap_abs": 1e-7, "tol_gap_rel": 1e-7, "tol_feas": 1e-7,
+                  "static_regularization_constant": 1e-7}):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -486,7 +606,8 @@ RELAXABLE = {
     "actuator_authority": "raise the actuator torque limits, lower tracking_error_amplitude or the controller decay_rate",
     "initial_conditions": "enlarge the initial-error bounds (initial_errors: E ellipsoid) or drop 'tracking'",
     "robustness": "the nominal configuration alone is feasible: narrow the sampled workspace (sampling.spread, "
-                  "sampling.samples) or add intermediate configurations",
+                  "sampling.samples), add intermediate configurations, or use relaxation: polytopic (the "
+                  "samples as vertices instead of a ρ-ball around the nominal)",
 }
 
 
@@ -604,8 +725,11 @@ def _infeasible(req, sc, rho, status, diagnose) -> NumericalError:
     problems = []
     if culprits:
         for c in culprits:
-            problems.append(Problem(f"constraint group '{c}' cannot be met together with the others",
-                                    field="synthesis.lmi", hint=RELAXABLE[c]))
+            msg = f"constraint group '{c}' cannot be met together with the others"
+            if c == "robustness" and any(r1 > 0 or r2 > 0 for r1, r2 in rho):
+                msg += (f" (relaxation '{req.relaxation}', sampled ρ₁, ρ₂ per linearisation: "
+                        + ", ".join(f"({r1:.3g}, {r2:.3g})" for r1, r2 in rho) + ")")
+            problems.append(Problem(msg, field="synthesis.lmi", hint=RELAXABLE[c]))
     else:
         problems.append(Problem("no single constraint group explains the infeasibility "
                                 "(the observer may not be detectable from the measured base rate, or "
