@@ -7,7 +7,8 @@ besides the 105 pose numbers. States change every sample (a random walk), as in 
 
     /tmp/venv/bin/python benches/bench_recorder.py [--samples 5000] [--repeats 5]
 
-Times are CPU time of this process (``time.process_time``), best of several runs. For
+Also the block path (``select`` + ``write_block``, one compiled encoding pass per block), which
+both simulation engines use. Times are CPU time of this process (``time.process_time``), best of several runs. For
 comparison it also times the same messages through ``mcap.writer.Writer`` (the package's
 writer, zstd chunks), which is what the recorder would cost without its own message packing.
 """
@@ -82,6 +83,24 @@ def bench_recorded(n: int, links, parents, poses, scalars, tmp: str) -> tuple[fl
         t2 = CLOCK()
     size = os.path.getsize(path)
     return (t1 - t0) / n * 1e6, (t2 - t0) / n * 1e6, size / n * 1000
+
+
+def bench_block(n: int, links, parents, poses, scalars, tmp: str, block: int = 512) -> tuple[float, float]:
+    """The same samples through select + write_block (the engines' path), blocks of ``block``;
+    the per-field arrays are built outside the timed region, as the engines hold them."""
+    path = os.path.join(tmp, "block.mcap")
+    rec = recorder(path, None, links, parents)
+    times = np.arange(n) * 0.01
+    cols = {topic: {name: np.array([sc[topic][name] for sc in scalars]) for name in scalars[0][topic]} for topic in scalars[0]}
+    with rec:
+        t0 = CLOCK()
+        for lo in range(0, n, block):
+            hi = min(lo + block, n)
+            idx = rec.select(times[lo:hi])
+            rec.write_block(times[lo:hi][idx], transforms=poses[lo:hi][idx],
+                            scalars={t: {f: a[lo:hi][idx] for f, a in fields.items()} for t, fields in cols.items()})
+        t1 = CLOCK()
+    return (t1 - t0) / n * 1e6, os.path.getsize(path) / n * 1000
 
 
 def bench_world_only(n: int, links, poses, scalars, tmp: str) -> float:
@@ -179,12 +198,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tree, tree_med, (_, with_finish, per_1000) = best(lambda: bench_recorded(n, links, parents, poses, scalars, tmp), reps)
         world, world_med, _ = best(lambda: bench_world_only(n, links, poses, scalars, tmp), reps)
+        bulk, bulk_med, (_, bulk_per_1000) = best(lambda: bench_block(n, links, parents, poses, scalars, tmp), reps)
         small, small_med, _ = best(lambda: bench_small(n, tmp), reps)
         skipped, skipped_med, (_, due, loop) = best(lambda: bench_skipped(200_000, links, parents, poses, scalars, tmp), reps)
         pkg, pkg_med, _ = best(lambda: bench_mcap_package(n, tmp, links, parents, poses, scalars), reps)
     print(f"recorder benchmark: {N_LINKS} links + 8 numeric topics (23 messages/sample), {n} samples, best of {reps} (median)")
     print(f"  recorded sample, /tf relative to URDF parents : {tree:6.1f} µs ({tree_med:.1f}); incl. finish {with_finish:.1f} µs")
     print(f"  recorded sample, /tf all relative to world    : {world:6.1f} µs ({world_med:.1f})")
+    print(f"  recorded sample, blocks of 512 (write_block)  : {bulk:6.1f} µs ({bulk_med:.1f}); "
+          f"{bulk_per_1000 / 1e6:.3f} MB per 1000 samples")
     print(f"  recorded sample, small (4 links, 5 topics × 3): {small:6.1f} µs ({small_med:.1f})")
     print(f"  skipped write_step call                       : {skipped:6.3f} µs ({skipped_med:.3f}); due(t) {due:.3f} µs; bare loop {loop:.3f} µs")
     print(f"  file size                                     : {per_1000 / 1e6:6.3f} MB per 1000 samples (zstd level 1)")

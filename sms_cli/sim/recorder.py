@@ -630,10 +630,14 @@ class McapRecorder:
             raise ValueError(f"recorder: block transforms must have shape ({n}, {nl}, 7), got {world.shape}")
         if self._tf_rel is None or relative:
             return world
-        parents = self._tf_rel.parents
-        tiled = (np.array(parents)[None, :] + nl * np.arange(n)[:, None])
-        tiled[:, np.array(parents) < 0] = -1
-        return RelativePoses(tiled.ravel().tolist(), python_below=0)(world.reshape(n * nl, 7)).reshape(n, nl, 7)
+        from sms_cli.sim.compiled.dynamics import relative_poses
+
+        parents = np.array(self._tf_rel.parents, dtype=np.int64)
+        tiled = parents[None, :] + nl * np.arange(n, dtype=np.int64)[:, None]  # row of each parent in the flat block
+        tiled[:, parents < 0] = -1
+        out = np.empty((n * nl, 7))
+        relative_poses(np.ascontiguousarray(world.reshape(n * nl, 7)), tiled.ravel(), out)
+        return out.reshape(n, nl, 7)
 
     def _block_values(self, plan: _ScalarPlan, scalars, n: int) -> np.ndarray:
         """The numeric topics' values (n, n_values) in the plan's template order."""
