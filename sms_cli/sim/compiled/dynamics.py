@@ -23,7 +23,7 @@ _HOT = dict(_JIT, inline="always")  # called in the innermost loop: no call boun
 
 
 # ----------------------------------------------------------------------------- 3-D helpers
-@njit(**_JIT)
+@njit(**_HOT)
 def quat_to_matrix(x, y, z, w, R):
     """R (3×3) of the unit quaternion (x, y, z, w)."""
     R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
@@ -37,7 +37,7 @@ def quat_to_matrix(x, y, z, w, R):
     R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def matrix_to_quat(R, out):
     """Quaternion (x, y, z, w) of a rotation matrix, by Eigen's algorithm (the same sign as
     ``pin.Quaternion(R)``)."""
@@ -65,7 +65,7 @@ def matrix_to_quat(R, out):
     out[k] = (R[k, i] + R[i, k]) * s
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def axis_rotation(ax, angle_cos, angle_sin, R):
     """Rotation by an angle (given by its cosine and sine) about the unit axis ax."""
     c, s = angle_cos, angle_sin
@@ -90,7 +90,7 @@ def cross(a, b, out):
 
 
 # ----------------------------------------------------------------------------- kinematics
-@njit(**_JIT)
+@njit(**_HOT)
 def compose(R1, p1, R2, p2, R_out, p_out):
     """(R_out, p_out) = (R1, p1) · (R2, p2): rotation R1 R2, translation p1 + R1 p2."""
     for a in range(3):
@@ -130,7 +130,7 @@ def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
         compose(place_R[i], place_p[i], Rj, tj, R_out[i], p_out[i])
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def world_placements(parent, R_rel, p_rel, oR, op):
     """World placement of each joint frame from the parent-relative ones (parents come first)."""
     for i in range(parent.shape[0]):
@@ -184,7 +184,7 @@ def relative_poses(world, parent, out):
 
 
 # ----------------------------------------------------------------------------- spatial algebra
-@njit(**_JIT)
+@njit(**_HOT)
 def motion_act_inv(R, p, m, out):
     """(R, p)⁻¹ acting on motion m (parent coordinates → child): [Rᵀ(v − p×ω); Rᵀω]."""
     v0 = m[0] - (p[1] * m[5] - p[2] * m[4])
@@ -195,7 +195,7 @@ def motion_act_inv(R, p, m, out):
         out[3 + a] = R[0, a] * m[3] + R[1, a] * m[4] + R[2, a] * m[5]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def force_act(R, p, f, out):
     """(R, p) acting on force f (child coordinates → parent): [R f; R n + p × R f]."""
     for a in range(3):
@@ -206,7 +206,7 @@ def force_act(R, p, f, out):
     out[5] += p[0] * out[1] - p[1] * out[0]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def motion_cross(v, m, out):
     """v × m = [ω×m_v + v×m_ω; ω×m_ω]."""
     out[0] = v[4] * m[2] - v[5] * m[1] + v[1] * m[5] - v[2] * m[4]
@@ -217,7 +217,7 @@ def motion_cross(v, m, out):
     out[5] = v[3] * m[4] - v[4] * m[3]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def force_cross(v, f, out):
     """v ×* f = [ω×f; ω×n + v×f]."""
     out[0] = v[4] * f[2] - v[5] * f[1]
@@ -228,7 +228,7 @@ def force_cross(v, f, out):
     out[5] = v[3] * f[4] - v[4] * f[3] + v[0] * f[1] - v[1] * f[0]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def add_inertia_to_parent(R, p, Ia, J, K, out):
     """out += Xᵀ Ia X for X = motion_act_inv(R, p): a 6×6 inertia moved to the parent frame.
     By blocks: J = diag(R) Ia diag(Rᵀ) = [[A, B], [Bᵀ, C]], then with P = [p]×
@@ -262,7 +262,7 @@ def add_inertia_to_parent(R, p, Ia, J, K, out):
             out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, 3 + b] - K[3 + b, 3 + a] - py[a]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def _subspace(kind, axis, S):
     """Motion subspace (6,) of a 1-DoF joint in its frame."""
     S[:] = 0.0
@@ -284,7 +284,7 @@ def workspace(n, nq, nv, ne=0):
             np.empty((10, ne)), np.empty(nv), np.zeros((6, 6)), np.zeros(6), np.empty(6))
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
     """Spatial velocity of each body in its joint frame."""
     n = parent.shape[0]
@@ -300,7 +300,7 @@ def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
             vel[i, off + a] += axis[i, a] * v[iv]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def _solve_spd6(A, b, L, out):
     """out = A⁻¹ b for a symmetric positive definite 6×6 A (Cholesky; L is scratch)."""
     for j in range(6):
@@ -409,7 +409,7 @@ def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, root
             acc6[i, a] += S[a] * qdd
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, out, ws):
     """out = [p (3), k about the CoM (3), k about the world origin (3), kinetic energy (J)], world frame."""
     vel, oR, op, f, fw = ws[0], ws[16], ws[17], ws[13], ws[14]
@@ -451,7 +451,7 @@ def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_re
 
 
 # ----------------------------------------------------------------------------- integration
-@njit(**_JIT)
+@njit(**_HOT)
 def quat_exp_mul(q, w, out):
     """out = q ⊗ exp(w/2) (xyzw; w a rotation vector in the frame of q), normalised."""
     ang = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
