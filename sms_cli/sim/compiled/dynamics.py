@@ -327,12 +327,13 @@ def _solve_spd6(A, b, L, out):
 
 
 @njit(**_HOT)
-def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
+def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
     ``root_dI`` (6×6) is added to the root body's inertia and ``root_f`` (6) to its bias force,
     both in the root frame: the mass matrix becomes H + [root_dI on the base block] and the
-    right-hand side τ − nle − [root_f; 0] (zeros for a plain rigid tree)."""
+    right-hand side τ − nle − [root_f; 0] (zeros for a plain rigid tree). ``leaf_IA`` gives the
+    constant parent-frame articulated inertia of symmetric leaves (``tree.flatten``; NaN: none)."""
     vel, c, IA, pA, U, D, u, acc6 = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7]
     X, Ia, XtIa, tmp, pa, S = ws[10], ws[11], ws[12], ws[13], ws[14], ws[15]
     n = parent.shape[0]
@@ -383,7 +384,12 @@ def aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau, root
                 acc += Ia[a, b] * c[i, b]
             pa[a] = acc
         # parent += Xᵀ Ia X (X: parent motion → child motion), pA_parent += X* pa
-        add_inertia_to_parent(R_rel[i], p_rel[i], Ia, XtIa, X, IA[pi])
+        if math.isnan(leaf_IA[i, 0, 0]):
+            add_inertia_to_parent(R_rel[i], p_rel[i], Ia, XtIa, X, IA[pi])
+        else:
+            for a in range(6):
+                for b in range(6):
+                    IA[pi, a, b] += leaf_IA[i, a, b]
         force_act(R_rel[i], p_rel[i], pa, tmp)
         for a in range(6):
             pA[pi, a] += tmp[a]
@@ -537,7 +543,7 @@ def dexpinv_neg(theta, v, out):
 
 
 @njit(**_HOT)
-def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                     neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                     q, v, eta, etad, tau, vdot, etadd, ws):
     """(v̇, η̈) of the hybrid model with appendages on the base (``SystemModel.forward_dynamics``):
@@ -571,7 +577,7 @@ def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx
             root_f[a] += tmp[a]
     R_rel, p_rel = ws[8], ws[9]
     joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-    aba(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, v, tau_eff, root_dI, root_f, vdot, ws)
+    aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau_eff, root_dI, root_f, vdot, ws)
     for k in range(ne):
         acc = r_eta[k]
         for a in range(6):
@@ -580,7 +586,7 @@ def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx
 
 
 @njit(**_JIT)
-def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                q, v, eta, etad, tau, dt, q_out, v_out, eta_out, etad_out, ws):
     """One RKMK4 step of size dt (s) under the held generalized forces τ
@@ -606,7 +612,7 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, i
     for stage in range(4):
         if stage > 0:
             integrate(kind, axis, idx_q, idx_v, q, th, qs)
-        hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+        hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                         neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                         qs, vs, md[4], md[5], tau, acc[stage], md[stage], ws)
         w = 1.0 if stage == 0 or stage == 3 else 2.0

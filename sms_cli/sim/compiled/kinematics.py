@@ -32,7 +32,8 @@ class SampleKinematics:
         from sms_cli.sim.compiled.tree import flatten
 
         T = flatten(self.sm.model)
-        self.tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.mass, T.com, T.armature, T.idx_q, T.idx_v)
+        self.tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.leaf_IA, T.mass, T.com, T.armature, T.idx_q,
+                     T.idx_v)
 
     def __call__(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from sms_cli.sim.compiled.loop import sample_outputs

@@ -24,7 +24,8 @@ RUNNING, SETTLED, NON_FINITE, RATE_LIMIT = 0, 1, 2, 3
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, wheel_v, out, ws):
+def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v, out,
+                            ws):
     """1 / (M⁻¹)_ii for each wheel velocity index: the inertia its relative speed sees at q
     (``WheelArray.update_effective_inertia``); columns of M⁻¹ by ABA at zero velocity."""
     nv = armature.shape[0]
@@ -36,7 +37,7 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armat
     for k in range(wheel_v.shape[0]):
         tau[:] = 0.0
         tau[wheel_v[k]] = 1.0
-        aba_call(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
                  col, ws)
         out[k] = 1.0 / col[wheel_v[k]]
 
@@ -44,7 +45,7 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armat
 @njit(cache=True, nogil=True, error_model="numpy")
 def run_ticks(
     # tree
-    parent, kind, axis, place_R, place_p, inertia, mass, com, armature, idx_q, idx_v,
+    parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
     # law (mrpFeedback) and phase
@@ -118,7 +119,7 @@ def run_ticks(
             tr_mom[k, 3 + a] = me[6 + a]
         tr_energy[k] = me[9]
         if nw and tick % 10 == 0:
-            effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, q, wheel_v,
+            effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)
         tau[:] = 0.0
         if law_on and thrusters:
@@ -136,7 +137,7 @@ def run_ticks(
                 limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
-            rkmk4_step(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, no_Bt, no_BtB, no_e, no_e,
+            rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, no_e, no_e,
                        no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work)
             q[:] = q_new
             v[:] = v_new
@@ -172,7 +173,7 @@ def run_ticks(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def sample_outputs(parent, kind, axis, place_R, place_p, inertia, mass, com, armature, idx_q, idx_v,
+def sample_outputs(parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
                    f_joint, f_R, f_p, f_parent, qs, vs, poses, rel, mom):
     """For each sampled state (rows of qs, vs): world poses of the recorded frames
     (poses[s, k] = [x y z qx qy qz qw]), their poses in their parent frames (rows f_parent,

@@ -54,7 +54,7 @@ class CompiledPlant:
         from sms_cli.sim.compiled.tree import flatten
 
         T = flatten(self.sm.model)
-        self._tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.armature, T.idx_q, T.idx_v)
+        self._tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.leaf_IA, T.armature, T.idx_q, T.idx_v)
 
     def step(self, s: State, tau: np.ndarray, dt: float) -> State:
         """The state after one RKMK4 step of dt (s) under the held generalized forces tau (nv)."""

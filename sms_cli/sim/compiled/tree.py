@@ -51,6 +51,7 @@ class Tree:
     place_R: np.ndarray  # (n, 3, 3) joint placement in the parent joint frame
     place_p: np.ndarray  # (n, 3)
     inertia: np.ndarray  # (n, 6, 6) spatial inertia of the body at the joint origin, joint frame
+    leaf_IA: np.ndarray  # (n, 6, 6) constant articulated inertia a leaf passes to its parent (NaN: not constant)
     mass: np.ndarray  # (n,)
     com: np.ndarray  # (n, 3) body CoM in the joint frame
     idx_q: np.ndarray  # (n,) int
@@ -101,12 +102,52 @@ def flatten(model: pin.Model) -> Tree:
     com = np.array([model.inertias[j].lever for j in range(1, n + 1)])
     inertia = np.array([spatial_inertia(model.inertias[j].mass, model.inertias[j].lever, model.inertias[j].inertia)
                         for j in range(1, n + 1)])
-    return Tree(parent=parent, kind=np.array(kinds, dtype=np.int64), axis=np.array(axes, float),
+    kind = np.array(kinds, dtype=np.int64)
+    axis = np.array(axes, float)
+    armature = np.asarray(model.armature, float).copy()
+    idx_v = np.array([model.idx_vs[j] for j in range(1, n + 1)], dtype=np.int64)
+    leaf_IA = _constant_leaf_inertias(parent, kind, axis, place_R, place_p, inertia, armature, idx_v)
+    return Tree(parent=parent, kind=kind, axis=axis, leaf_IA=leaf_IA,
                 place_R=np.ascontiguousarray(place_R), place_p=np.ascontiguousarray(place_p), inertia=inertia,
                 mass=mass, com=np.ascontiguousarray(com),
                 idx_q=np.array([model.idx_qs[j] for j in range(1, n + 1)], dtype=np.int64),
-                idx_v=np.array([model.idx_vs[j] for j in range(1, n + 1)], dtype=np.int64),
-                armature=np.asarray(model.armature, float).copy(), nq=model.nq, nv=model.nv)
+                idx_v=idx_v, armature=armature, nq=model.nq, nv=model.nv)
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    return pin.AngleAxis(angle, np.asarray(axis, float)).toRotationMatrix()
+
+
+def _constant_leaf_inertias(parent, kind, axis, place_R, place_p, inertia, armature, idx_v) -> np.ndarray:
+    """For a revolute joint with no child whose articulated inertia I − U Uᵀ/D (U = I S) does not
+    change when the body turns about the joint axis (a rotor: axisymmetric about its spin axis),
+    the inertia ABA passes to the parent, Xᵀ (I − U Uᵀ/D) X, is a constant (X: the joint's fixed
+    placement); NaN marks the others. It saves ABA's most expensive step for reaction wheels."""
+    n = parent.size
+    out = np.full((n, 6, 6), np.nan)
+    has_child = np.zeros(n, dtype=bool)
+    has_child[parent[parent >= 0]] = True
+    for i in range(n):
+        if has_child[i] or parent[i] < 0 or kind[i] not in (REVOLUTE, REVOLUTE_UNBOUNDED):
+            continue
+        S = np.concatenate([np.zeros(3), axis[i]])
+        U = inertia[i] @ S
+        Ia = inertia[i] - np.outer(U, U) / (S @ U + armature[idx_v[i]])
+        scale = max(np.abs(Ia).max(), 1e-300)
+        symmetric = True
+        for angle in (0.7, 2.3):
+            R = _axis_rotation(axis[i], angle)
+            B = np.zeros((6, 6))
+            B[:3, :3] = B[3:, 3:] = R
+            if np.abs(B @ Ia @ B.T - Ia).max() > 1e-12 * scale:
+                symmetric = False
+        if symmetric:
+            R, p = place_R[i], place_p[i]
+            X = np.zeros((6, 6))  # parent motion -> child motion (the joint at angle 0)
+            X[:3, :3] = X[3:, 3:] = R.T
+            X[:3, 3:] = -R.T @ pin.skew(p)
+            out[i] = X.T @ Ia @ X
+    return out
 
 
 def frame_table(model: pin.Model, frame_ids: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
