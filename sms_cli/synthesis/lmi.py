@@ -89,7 +89,7 @@ from sms_cli.synthesis.regions import PoleRegion, region_lmis
 EPS = 1e-5  # strictness margin of the LMIs, in scaled units
 Q_MAX = 1e6  # conditioning cap on each scaled Q_i (an actuator whose error barely enters γ)
 C_D = 0.5  # share of V(0) given to the NDO initial error (chapter 4)
-IPM_TOL = 1e-7  # relative gap and residuals of the dedicated solver (Clarabel's tolerances below)
+IPM_TOL = 1e-6  # relative gap and residuals of the dedicated solver (Clarabel's tolerances below)
 
 
 @dataclass
