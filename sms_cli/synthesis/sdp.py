@@ -247,7 +247,14 @@ def solve_lmi(c: np.ndarray, blocks: list[LmiBlock], tol: float = 1e-8, max_iter
     """Minimise cᵀx subject to every block ⪰ 0 (see the module docstring).
 
     method: 'auto' (Cholesky of the Schur complement, QR of its factor from the first step
-    whose residual is too large) or 'qr' (QR throughout)."""
+    whose residual is too large) or 'qr' (QR throughout). On an infeasible problem the iterates
+    grow without bound; the run stops on non-finite residuals with status 'failed', so numpy's
+    overflow warnings on the way are silenced rather than shown to the user."""
+    with np.errstate(over="ignore"):
+        return _solve_lmi(c, blocks, tol, max_iter, verbose, method)
+
+
+def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     if method not in ("auto", "qr"):
         raise ValueError(f"unknown method {method!r}")
     t0 = time.perf_counter()
