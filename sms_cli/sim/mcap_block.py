@@ -17,7 +17,8 @@ import re
 import numpy as np
 from numba import njit
 
-_JIT = {"cache": True, "nogil": True, "error_model": "numpy"}  # numpy: no zero-division checks in the hot loops
+from sms_cli.sim.compiled import JIT as _JIT
+
 FLOAT_G12, INTEGER = 0, 1
 _SLOT = re.compile(rb"%%|%\.12g|%d")
 HEADER_BYTES = 31  # opcode u8, record length u64, channel u16, sequence u32, log time u64, publish time u64

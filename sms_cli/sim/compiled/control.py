@@ -13,7 +13,7 @@ import math
 
 from numba import njit
 
-_JIT = {"cache": True, "nogil": True, "error_model": "numpy"}  # numpy: no zero-division checks in the hot loops
+from sms_cli.sim.compiled import JIT as _JIT
 
 
 @njit(**_JIT)

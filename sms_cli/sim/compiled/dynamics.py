@@ -16,10 +16,9 @@ import math
 import numpy as np
 from numba import njit
 
+from sms_cli.sim.compiled import HOT as _HOT
+from sms_cli.sim.compiled import JIT as _JIT
 from sms_cli.sim.compiled.tree import FREE_FLYER, PRISMATIC, REVOLUTE, REVOLUTE_UNBOUNDED
-
-_JIT = {"cache": True, "nogil": True, "error_model": "numpy"}  # numpy: no zero-division checks in the hot loops
-_HOT = dict(_JIT, inline="always")  # called in the innermost loop: no call boundary (it costs ~0.4 us with many array arguments)
 
 
 # ----------------------------------------------------------------------------- 3-D helpers

@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import (allocate_and_clip, error_angle, error_quaternion, limited_torque,
                                           may_reach_limit, mrp_feedback)
 from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transforms, momenta_energy, relative_poses,
@@ -23,7 +24,7 @@ from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transfor
 RUNNING, SETTLED, NON_FINITE, RATE_LIMIT = 0, 1, 2, 3
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(**JIT)
 def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v, out,
                             ws):
     """1 / (M⁻¹)_ii for each wheel velocity index: the inertia its relative speed sees at q
@@ -42,7 +43,7 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_
         out[k] = 1.0 / col[wheel_v[k]]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(**JIT)
 def run_ticks(
     # tree
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
@@ -172,7 +173,7 @@ def run_ticks(
     return n_ticks, steps, RUNNING
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(**JIT)
 def sample_outputs(parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
                    f_joint, f_R, f_p, f_parent, qs, vs, poses, rel, mom):
     """For each sampled state (rows of qs, vs): world poses of the recorded frames
