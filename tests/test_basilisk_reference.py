@@ -163,8 +163,8 @@ def test_lyapunov_decrease_and_convergence(run):
     assert V[-1] < 1e-4 * V[last + 1]
 
 
-@pytest.mark.skipif(not REFERENCE.exists(), reason="benches/data/basilisk_reference.npz not present")
 def test_matches_basilisk_history(run):
+    assert REFERENCE.exists(), f"{REFERENCE} is shipped with the repository (regenerate: benches/basilisk_reference.py)"
     ref = np.load(REFERENCE)
     kb = np.rint(ref["t"] / DT).astype(int)
     ks = np.rint(run["t"] / DT).astype(int)
