@@ -18,7 +18,6 @@ from sms_cli.sim.interfaces import ArmRef, EndEffectorRef
 from sms_cli.sim.metrics import Trace, conservation, summarize
 from sms_cli.sim.references import AttitudeProfile, JointProfile
 from sms_cli.sim.schema import PhaseSpec, SimulationSpec
-from sms_cli.sim.topics import numeric_topics
 from sms_cli.sim.sensors import Sensors
 
 
@@ -97,22 +96,25 @@ class Simulation:
         self.spec = spec
         self.rec = recorder
         self._progress_flag = progress
-        if recorder is not None:
-            from sms_cli.sim.record_buffer import RecordBuffer
-
-            self._buffer = RecordBuffer(sm, recorder)
         self.sensors = Sensors(sm, spec.sensors)
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
         att_spec = self.att_spec = attitude_from_gains(results_dir) if spec.attitude == "from_gains" else spec.attitude
         self.att_law = build_attitude_law(att_spec, sm) if att_spec else None
         self.arm_law = build_arm_law(spec.arm, sm) if spec.arm else None
         self.rr = build_resolved_rate(spec.resolved_rate, sm) if spec.resolved_rate else None
-        self.plant = None  # the compiled plant step, when the model allows it and the engine is not 'python'
-        if spec.engine != "python":
+        # the compiled loop runs the mission when it fits it; otherwise the Python loop below, with
+        # the compiled plant step when the model allows it and recording in blocks
+        self.compiled_loop = spec.engine != "python" and self.compiled_unsupported() is None
+        self.plant = None
+        if not self.compiled_loop and spec.engine != "python":
             from sms_cli.sim.compiled.plant import CompiledPlant, unsupported_reason
 
             if unsupported_reason(sm) is None:
                 self.plant = CompiledPlant(sm)
+        if recorder is not None and not self.compiled_loop:
+            from sms_cli.sim.record_buffer import RecordBuffer
+
+            self._buffer = RecordBuffer(sm, recorder)
         self.ndi = None
         if spec.ndi is not None:
             from sms_cli.sim.laws.ndi import build_ndi
@@ -193,16 +195,15 @@ class Simulation:
         """Run the mission with the engine ``simulation.engine`` asks for (see SimulationSpec)."""
         from sms_cli.errors import InputError, Problem
 
-        if self.spec.engine != "python":
-            why = self.compiled_unsupported()
-            if why is None:
-                from sms_cli.sim.compiled.runner import CompiledSimulation
+        if self.compiled_loop:
+            from sms_cli.sim.compiled.runner import CompiledSimulation
 
-                return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
-            if self.spec.engine == "compiled":
-                raise InputError(problems=[Problem(f"the compiled engine cannot run this mission: {why}",
-                                                   field="simulation.engine",
-                                                   hint="write engine: auto (the Python loop runs it) or python")])
+            return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
+        if self.spec.engine == "compiled":
+            why = self.compiled_unsupported()
+            raise InputError(problems=[Problem(f"the compiled engine cannot run this mission: {why}",
+                                               field="simulation.engine",
+                                               hint="write engine: auto (the Python loop runs it) or python")])
         return self.run_python()
 
     # ------------------------------------------------------------------ main loop

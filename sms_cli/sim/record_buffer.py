@@ -19,14 +19,14 @@ from sms_cli.sim.topics import numeric_topics
 class RecordBuffer:
     """Pending samples of one recording (see the module docstring)."""
 
-    def __init__(self, sm: SystemModel, recorder, capacity: int = 512):
+    def __init__(self, sm: SystemModel, recorder, capacity: int = 512, kinematics=None):
         from sms_cli.sim.compiled.tree import unsupported_reason
 
         self.sm = sm
         self.rec = recorder
         self.capacity = capacity
-        self.kinematics = None
-        if unsupported_reason(sm.model) is None:
+        self.kinematics = kinematics  # a SampleKinematics, or None: Pinocchio per sample
+        if kinematics is None and unsupported_reason(sm.model) is None:
             from sms_cli.sim.compiled.kinematics import SampleKinematics
 
             self.kinematics = SampleKinematics(sm)
@@ -71,12 +71,23 @@ class RecordBuffer:
         cols = list(zip(*rows))
         t, q, v, eta, tw, tm, ref, jref, err, p, k = (np.array(c) for c in cols[:11])
         reaction = None if cols[11][0] is None else np.array(cols[11])
+        world = None if self.kinematics is not None else np.array(cols[12])
+        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world)
+
+    def write(self, t, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p=None, k=None,
+              reaction=None, world=None) -> None:
+        """Write n samples given as stacks (leading axis n) at once, bypassing the queue: the
+        block path of both engines. p, k None: the rigid tree's momenta (compiled kinematics);
+        ``world`` (n, n_links + 1, 7): world poses of the links and end effector when there are
+        no compiled kinematics."""
         if self.kinematics is not None:
-            world, rel, _ = self.kinematics(q, v)
+            world, rel, mom = self.kinematics(q, v)
             transforms, relative = rel[:, :-1], True
+            if p is None:
+                p, k = mom[:, 0:3], mom[:, 3:6]
         else:
-            world = np.array(cols[12])
             transforms, relative = world[:, :-1], False
-        scalars = numeric_topics(self.sm, q=q, v=v, wheel_torque=tw, ref_quat=ref, err_vec=err, momentum_p=p, momentum_k=k,
-                                 ee=world[:, -1, :3], joint_torque=tm, joint_ref=jref, eta=eta, base_reaction=reaction)
+        scalars = numeric_topics(self.sm, q=q, v=v, wheel_torque=wheel_torque, ref_quat=ref_quat, err_vec=err_vec,
+                                 momentum_p=p, momentum_k=k, ee=world[:, -1, :3], joint_torque=joint_torque,
+                                 joint_ref=joint_ref, eta=eta, base_reaction=reaction)
         self.rec.write_block(t, transforms=transforms, scalars=scalars, relative=relative)

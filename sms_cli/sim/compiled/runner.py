@@ -19,6 +19,7 @@ import numpy as np
 from sms_cli.model.system import SystemModel
 from sms_cli.sim.attitude_math import attitude_error
 from sms_cli.sim.compiled.kinematics import SampleKinematics
+from sms_cli.sim.record_buffer import RecordBuffer
 from sms_cli.sim.schema import SimulationSpec
 
 CHUNK_STEPS = 20_000
@@ -81,6 +82,7 @@ class CompiledSimulation:
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
+        self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
 
     # ------------------------------------------------------------------ pieces
@@ -92,19 +94,15 @@ class CompiledSimulation:
 
     def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks."""
-        from sms_cli.sim.topics import numeric_topics
-
-        rec = self.rec
-        idx = rec.select(times)
+        idx = self.rec.select(times)
         if idx.size == 0:
             return
-        qs, vs, tau_w = qs[idx], vs[idx], tau_w[idx]
-        poses, rel, mom = self._samples(qs, vs)
-        refs = np.broadcast_to(ref_quat, (idx.size, 4))
+        qs = qs[idx]
+        n = idx.size
+        refs = np.broadcast_to(ref_quat, (n, 4))
         err = attitude_error(refs, qs[:, 3:7]) if err_vec is None else err_vec
-        scalars = numeric_topics(self.sm, q=qs, v=vs, wheel_torque=tau_w, ref_quat=refs, err_vec=err,
-                                 momentum_p=mom[:, 0:3], momentum_k=mom[:, 3:6], ee=poses[:, -1, :3])
-        rec.write_block(times[idx], transforms=rel[:, :-1], scalars=scalars, relative=True)
+        none = np.zeros((n, 0))  # no modes, no arm
+        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], none, refs, none, err)
 
     def _law_args(self):
         law = self.law
@@ -195,14 +193,15 @@ class CompiledSimulation:
         finally:
             self.progress.close()
         wall = time.perf_counter() - wall0
-        trace = self._trace_arrays(pieces, nw)
-        if status == "completed" and trace["t"].size:
+        filled = [p for p in pieces if p["t"].size]
+        if status == "completed" and filled:  # the final state, as the Python loop adds it
             _, _, mom = self._samples(q[None], v[None])
-            final = {"t": [t], "att_err": [float(np.linalg.norm(attitude_error(q_att_ref, q[3:7])))],
-                     "wheel_speed": [v[wheel_v]], "wheel_torque": [trace["wheel_torque"][-1]], "saturated": [False],
-                     "base_torque": [last_T], "momentum": [np.concatenate([mom[0, 0:3], mom[0, 6:9]])],
-                     "energy": [mom[0, 9]], "phase": [len(spec.phases) - 1]}
-            trace = self._trace_arrays([trace, {k: np.asarray(x) for k, x in final.items()}], nw)
+            pieces.append({"t": np.array([t]), "att_err": np.array([np.linalg.norm(attitude_error(q_att_ref, q[3:7]))]),
+                           "wheel_speed": v[wheel_v][None], "wheel_torque": filled[-1]["wheel_torque"][-1:],
+                           "saturated": np.array([False]), "base_torque": last_T[None],
+                           "momentum": np.concatenate([mom[0, 0:3], mom[0, 6:9]])[None], "energy": mom[0, 9:10],
+                           "phase": np.array([len(spec.phases) - 1])})
+        trace = self._trace_arrays(pieces, nw)
         return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
 
     def _warm_up(self) -> None:

@@ -123,6 +123,8 @@ def _constant_leaf_inertias(parent, kind, axis, place_R, place_p, inertia, armat
     change when the body turns about the joint axis (a rotor: axisymmetric about its spin axis),
     the inertia ABA passes to the parent, Xᵀ (I − U Uᵀ/D) X, is a constant (X: the joint's fixed
     placement); NaN marks the others. It saves ABA's most expensive step for reaction wheels."""
+    from sms_cli.sim.compiled.dynamics import add_inertia_to_parent
+
     n = parent.size
     out = np.full((n, 6, 6), np.nan)
     has_child = np.zeros(n, dtype=bool)
@@ -141,12 +143,10 @@ def _constant_leaf_inertias(parent, kind, axis, place_R, place_p, inertia, armat
             B[:3, :3] = B[3:, 3:] = R
             if np.abs(B @ Ia @ B.T - Ia).max() > 1e-12 * scale:
                 symmetric = False
-        if symmetric:
-            R, p = place_R[i], place_p[i]
-            X = np.zeros((6, 6))  # parent motion -> child motion (the joint at angle 0)
-            X[:3, :3] = X[3:, 3:] = R.T
-            X[:3, 3:] = -R.T @ pin.skew(p)
-            out[i] = X.T @ Ia @ X
+        if symmetric:  # the transform ABA applies, at joint angle 0 (the joint's fixed placement)
+            out[i] = 0.0
+            add_inertia_to_parent(np.ascontiguousarray(place_R[i]), np.ascontiguousarray(place_p[i]), Ia,
+                                  np.empty((6, 6)), np.empty((6, 6)), out[i])
     return out
 
 
