@@ -6,11 +6,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 import scipy.signal
 import yaml
 
-from conftest import DATA, compile_path
+from conftest import DATA
 from sms_cli.mission.load import load_mission
 from sms_cli.model import compile_system
 from sms_cli.sim.engine import Simulation

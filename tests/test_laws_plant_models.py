@@ -7,15 +7,14 @@ import math
 
 import numpy as np
 import pinocchio as pin
-import pytest
 
 from sms_cli.dynamics.integrator import State, rkmk4_step
-from sms_cli.sim.interfaces import ArmRef, AttitudeRef, Sensed
+from sms_cli.sim.interfaces import ArmRef, AttitudeRef
 from sms_cli.sim.laws.arm import ComputedTorque
 from sms_cli.sim.laws.attitude import SlidingModeAttitude, TrackingError
 from sms_cli.sim.laws.plant_models import SystemBody, base_rotation, effective_inertia
 
-from conftest import DATA, MISSIONS, compile_path, sm_sensed
+from conftest import MISSIONS, compile_path, sm_sensed
 
 
 

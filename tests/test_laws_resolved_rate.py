@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from sms_cli.dynamics.integrator import State, rkmk4_step
-from sms_cli.sim.interfaces import EndEffectorRef, Sensed
+from sms_cli.sim.interfaces import EndEffectorRef
 from sms_cli.sim.laws.resolved_rate import ResolvedRate, damped_pinv_solve
 
 from conftest import DATA, compile_path, sm_sensed

@@ -117,7 +117,6 @@ def test_diverging_simulation_exits_3_and_keeps_the_recording(tmp_path):
 def test_seed003_torque_free_body_rotates_against_the_arm(tmp_path):
     """Seed 003 R1 (L664-668): with no attitude control, deploying the arm (joint 1 about −y from 180° to
     0°, i.e. the arm turns by +π about +y) turns the body the other way about y, momentum staying zero."""
-    import numpy as np
     import pinocchio as pin
 
     from sms_cli.mission.load import load_mission

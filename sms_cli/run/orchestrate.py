@@ -12,7 +12,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 from sms_cli.errors import EXIT_NUMERICAL, EXIT_OK, EXIT_REQUIREMENTS, SmsError
 from sms_cli.results import ResultsDir

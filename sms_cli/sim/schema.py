@@ -8,7 +8,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from sms_cli.mission.base import Position3, Rotation3, StrictModel, Vector3
-from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Force, Frequency, Time, Torque
+from sms_cli.mission.units import Angle, AngularRate, Force, Frequency, Time, Torque
 from sms_cli.sim.laws.schema import ArmLawSpec, AttitudeLawSpec, ResolvedRateSpec
 
 BaseMode = Literal["free-floating", "rotation-free-floating", "free-flying", "fixed"]

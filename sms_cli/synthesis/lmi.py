@@ -204,7 +204,6 @@ class _Scaled:
 
 
 def _scale(req: SynthesisRequest) -> _Scaled:
-    from scipy.linalg import matrix_balance
 
     omega_c = req.controller_region.radius
     # observer state in units of its initial-error bounds (x̃_i = x_i/b_i, Ẽ ≈ I/n_e): the
