@@ -2,7 +2,8 @@
 which ``sms compile`` accepts (with a minimal mission ``name: peer / robot: {urdf: …}``).
 
 For each ``*.urdf`` below the given paths (folders are searched recursively):
-  1. Pinocchio loads it with a free-flyer root (``pin.buildModelFromUrdf``);
+  1. Pinocchio loads it with a free-flyer root (``pin.buildModelFromXML``; revolute and prismatic
+     joints without <limit> get an unbounded one first, as SPART reads them, since urdfdom refuses them);
   2. its joint-space mass matrix at the neutral configuration is non-singular
      (smallest eigenvalue > 1e-12 × largest, the same test ``sms compile`` applies);
   3. ``sms compile`` (the real command, in-process through typer) exits 0, 2 or something else.
@@ -34,17 +35,28 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import pinocchio as pin  # noqa: E402
+from lxml import etree  # noqa: E402
 from typer.testing import CliRunner  # noqa: E402
 
 from sms_cli.cli import app  # noqa: E402
 from sms_cli.model.build import captured_c_stderr  # noqa: E402
 
 
+def with_limits(xml: bytes) -> str:
+    """The URDF with a <limit> added to revolute/prismatic joints that have none (SPART's convention:
+    unbounded). urdfdom refuses such joints; SPART and sms read them as unbounded."""
+    root = etree.fromstring(xml)
+    for j in root.iter("joint"):
+        if j.get("type") in ("revolute", "prismatic") and j.find("limit") is None:
+            etree.SubElement(j, "limit", lower="-1e10", upper="1e10", effort="1e10", velocity="1e10")
+    return etree.tostring(root, encoding="unicode")
+
+
 def pinocchio_verdict(path: Path) -> tuple[bool, bool, str]:
-    """(loads, mass matrix non-singular, reason) for Pinocchio alone."""
+    """(loads, mass matrix non-singular, reason) for Pinocchio alone (missing <limit>s filled first)."""
     with captured_c_stderr():
         try:
-            model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+            model = pin.buildModelFromXML(with_limits(path.read_bytes()), pin.JointModelFreeFlyer())
         except Exception as exc:  # noqa: BLE001 - any failure of the reference loader
             return False, False, f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
     data = model.createData()
@@ -72,6 +84,17 @@ def sms_verdict(path: Path, strict: bool) -> tuple[int, str, float]:
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     msg = " | ".join(lines[:3]) if result.exit_code else ""
     return result.exit_code, msg or first, dt
+
+
+def reason(msg: str) -> str:
+    """The kind of a refusal: its first problem without the file, line and names."""
+    import re
+
+    parts = [p for p in msg.split(" | ") if not p.startswith("fix:")
+             and not re.search(r"problem\(s\)|: the robot's mass matrix is singular$", p)]
+    first = parts[0] if parts else msg
+    first = re.sub(r"^(error: )?\S+?:\d+(:\d+)?: ", "", first)
+    return re.sub(r"'[^']*'", "'…'", re.sub(r"\(line \d+\)", "", first))[:90]
 
 
 def main() -> int:
@@ -116,7 +139,7 @@ def main() -> int:
         print("\nrefused (exit 2):")
         for f, kind, msg in refusals:
             print(f"  [{kind}] {f}\n      {msg[:300]}")
-        reasons = Counter(msg.split("|")[1].split(":")[-1].strip()[:60] if "|" in msg else msg[:60] for _, _, msg in refusals)
+        reasons = Counter(reason(msg) for _, _, msg in refusals)
         print("\nreasons (first message, truncated):")
         for why, n in reasons.most_common():
             print(f"  {n:3d}  {why}")

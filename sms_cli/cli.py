@@ -110,13 +110,16 @@ def compile_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
     out: OutOpt = None,
     write: Annotated[bool, typer.Option("--write/--no-write", help="also write the summary into the results folder")] = False,
+    strict: Annotated[bool, typer.Option("--strict", help="refuse, as a lint, what is accepted with a warning: massless "
+                                         "or point-mass links, inertias off the triangle inequality, non-physical inertias "
+                                         "(also robot.strict in the mission)")] = False,
 ) -> None:
     """Validate a mission and its robot; print the model summary (DoF, mass, inertia, wheels, modes)."""
 
     def body() -> int:
         from sms_cli.model.summary import compile_summary, format_summary
 
-        summary = compile_summary(mission)
+        summary = compile_summary(mission, strict=strict)
         if write:
             from sms_cli.results import ResultsDir
 

@@ -42,6 +42,7 @@ class Problem:
     location: Location | None = None
     field: str = ""
     hint: str = ""
+    lint: bool = False  # a warning that ``strict`` (sms compile --strict, robot.strict) turns into an error
 
     def render(self) -> str:
         head = f"{self.location}: " if self.location else ""
@@ -92,8 +93,13 @@ class Warnings:
 
     items: list[Problem] = field(default_factory=list)
 
-    def add(self, message: str, location: Location | None = None, field: str = "", hint: str = "") -> None:
-        self.items.append(Problem(message, location, field, hint))
+    def add(self, message: str, location: Location | None = None, field: str = "", hint: str = "",
+            lint: bool = False) -> None:
+        self.items.append(Problem(message, location, field, hint, lint))
+
+    def lint(self) -> list[Problem]:
+        """The findings that strict mode refuses."""
+        return [p for p in self.items if p.lint]
 
     def __iter__(self):
         return iter(self.items)

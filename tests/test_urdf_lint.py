@@ -26,11 +26,9 @@ CASES = [
     ("several roots", lambda u: u.replace("</robot>", '<link name="orphan"/>\n</robot>'), "root links", '<link name="orphan"/>'),
     ("duplicate link", lambda u: u.replace("</robot>", '<link name="l1"/>\n</robot>'), "duplicate link name 'l1'", '<link name="l1"/>\n</robot>'),
     ("duplicate joint", lambda u: u.replace('<joint name="j3"', '<joint name="j2"'), "duplicate joint name 'j2'", None),
-    ("non-positive mass", lambda u: u.replace('<mass value="4"/>', '<mass value="-4"/>'), "non-positive mass", '<mass value="-4"/>'),
-    ("zero mass", lambda u: u.replace('<mass value="4"/>', '<mass value="0"/>'), "non-positive mass", '<mass value="0"/>'),
-    ("inertia not PD", lambda u: u.replace('ixx="0.01" iyy="0.35" izz="0.35"', 'ixx="-0.01" iyy="0.35" izz="0.35"'), "not positive definite", 'ixx="-0.01"'),
-    ("triangle inequality", lambda u: u.replace('ixx="0.01" iyy="0.35" izz="0.35"', 'ixx="0.01" iyy="0.1" izz="0.35"'), "triangle inequality", 'iyy="0.1" izz="0.35"'),
-    ("zero axis", lambda u: u.replace('<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>', 1), "zero or malformed axis", '<axis xyz="0 0 0"/>'),
+    ("negative mass", lambda u: u.replace('<mass value="4"/>', '<mass value="-4"/>'), "negative mass", '<mass value="-4"/>'),
+    ("zero axis", lambda u: u.replace('<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>', 1), "zero axis", '<axis xyz="0 0 0"/>'),
+    ("malformed axis", lambda u: u.replace('<axis xyz="0 1 0"/>', '<axis xyz="0 1"/>', 1), "holds 2 value(s), expected 3", '<axis xyz="0 1"/>'),
     ("unsupported joint type", lambda u: u.replace('name="j3" type="revolute"', 'name="j3" type="planar"'), "unsupported type 'planar'", 'type="planar"'),
     ("malformed XML", lambda u: u.replace("</robot>", ""), "not well-formed XML", None),
 ]
@@ -48,11 +46,14 @@ def test_bad_urdf_exit_2_with_line(tmp_path, label, mutate, message, needle):
         assert f"arm3.urdf:{line_of(bad, needle.splitlines()[0])}" in r.stderr
 
 
-def test_pinocchio_parse_error_is_captured(tmp_path):
+def test_malformed_number_is_found_before_pinocchio(tmp_path):
+    """urdfdom would say "at line 243 in model.cpp"; the lint names the URDF's own line."""
     bad = URDF.replace('<origin xyz="0 0 0.2" rpy="0 0 0"/>', '<origin xyz="0 zero 0.2" rpy="0 0 0"/>')
     r = compile_with(tmp_path, bad)
     assert r.exit_code == 2
-    assert "Pinocchio could not build the model" in r.stderr
+    needle = 'xyz="0 zero 0.2"'
+    assert f"arm3.urdf:{line_of(bad, needle)}: joint 'j2': <origin {needle}> 'zero' is not a decimal number" in r.stderr
+    assert "model.cpp" not in r.stderr and "Pinocchio" not in r.stderr
 
 
 def test_non_unit_axis_is_normalised_with_warning(tmp_path):

@@ -49,6 +49,8 @@ import numpy as np
 GROUP_COLUMNS: dict[str, tuple[str, ...]] = {
     "pose": ("ee_x", "ee_y", "ee_z", "ee_roll", "ee_pitch", "ee_yaw"),
     "manipulability": ("mu_fixed", "mu_gjm", "gjm_cond", "singular", "mu_ratio"),
+    # manipulability of a kinematics-only robot (robot.kinematics_only): the fixed-base part alone
+    "fixed_manipulability": ("mu_fixed", "fixed_cond", "singular"),
     "dynamic_manipulability": ("mu_dyn",),
     "base_indices": ("K_m", "K_r"),
     "null_motion": ("mu_scal_lin", "mu_null_lin", "mu_null_ang", "mu_scal_lin_norm", "mu_null_lin_norm"),
@@ -90,6 +92,11 @@ class ArmLayout:
     tau_max: np.ndarray  # joint effort limits (N m or N)
     omega_max: np.ndarray  # wheel speed limits (rad/s)
     skipped: dict[str, str] = field(default_factory=dict)
+
+
+#: Groups that need no mass matrix, and why the others are skipped on a kinematics-only robot.
+KINEMATIC_GROUPS = ("fixed_manipulability", "joint_limits")
+KINEMATICS_ONLY = "needs the mass matrix; the robot is kinematics-only (robot.kinematics_only: placeholder inertias)"
 
 
 def _finite_positive(x: np.ndarray) -> bool:
@@ -203,7 +210,10 @@ class IndexKernel:
     """
 
     def __init__(self, model, ee_frame_id: int, q_template: np.ndarray, layout: ArmLayout,
-                 groups: tuple[str, ...], singular_tolerance: float = 1e-3, task: str = "auto"):
+                 groups: tuple[str, ...], singular_tolerance: float = 1e-3, task: str = "auto",
+                 kinematics_only: bool = False):
+        """``kinematics_only``: the model's inertias are placeholders, so only the groups that do not
+        use the mass matrix run (pose, fixed-base manipulability, joint limits)."""
         import pinocchio as pin
 
         self.pin = pin
@@ -216,6 +226,7 @@ class IndexKernel:
         self.nm = len(layout.v_arm)
         self.nr = len(layout.v_wheels)
         self.task = ("position" if self.nm < 6 else "pose") if task == "auto" else task
+        self.kinematics_only = kinematics_only
         self.groups = self._feasible_groups(tuple(groups))
         self.columns = list(GROUP_COLUMNS["pose"])
         for g in self.groups:
@@ -232,8 +243,13 @@ class IndexKernel:
         out = []
         for g in groups:
             why = ""
+            if self.kinematics_only and g == "manipulability":
+                L.skipped["manipulability (free-floating part)"] = KINEMATICS_ONLY
+                g = "fixed_manipulability"
             if self.nm == 0:
                 why = "the robot has no arm joint"
+            elif self.kinematics_only and g not in KINEMATIC_GROUPS:
+                why = KINEMATICS_ONLY
             elif g == "dynamic_manipulability" and not _finite_positive(L.tau_max):
                 why = "joint effort limits missing: set analysis.limits.joint_torque"
             elif g in ("base_indices", "null_motion", "momentum") and not _finite_positive(L.q_max):
@@ -306,7 +322,11 @@ class IndexKernel:
         rpy = _rpy_zyx(Rs)
         out.update(ee_x=d[:, 0], ee_y=d[:, 1], ee_z=d[:, 2], ee_roll=rpy[:, 0], ee_pitch=rpy[:, 1], ee_yaw=rpy[:, 2])
         self._joint_limits(Q, out)
-        if not set(g) - {"joint_limits"}:
+        if "fixed_manipulability" in g:
+            Jt_fix = Jm_lin if self.task == "position" else np.concatenate([Jm_lin, Jm_ang], axis=1)
+            cond = cond_of_gram(gram(Jt_fix))
+            out.update(mu_fixed=manipulability(Jt_fix), fixed_cond=cond, singular=(cond < self.tol).astype(float))
+        if not set(g) - set(KINEMATIC_GROUPS):
             return out
 
         A, xa, xl, Jst_lin, Jst_ang = self._free_floating(Ms, d, Jm_lin, Jm_ang)

@@ -16,6 +16,7 @@ LABELS = {
     "K_m": "K^m_ω0 (joint share of base attitude disturbance)",
     "K_r": "K^r_ω0 (wheel share)",
     "mu_fixed": "μ fixed base",
+    "fixed_cond": "σmin/σmax of the fixed-base J_m",
     "mu_gjm": "μ(J*_mEE) free floating",
     "gjm_cond": "σmin/σmax of J*_mEE",
     "mu_ratio": "μ(J*_mEE) / μ fixed base",

@@ -42,6 +42,7 @@ def _modal_configuration(sm, conf: dict, loaded, i: int) -> np.ndarray:
 
 def run_modal(sm, spec: AnalysisSpec, out: Path, loaded=None) -> list[dict]:
     """Linear models and coupled modes at each configuration of ``analysis.modal``."""
+    sm.require_dynamics("the modal analysis (analysis.modal)")
     from sms_cli.analysis.modal import coupled_modes, export, linearize
 
     results = []

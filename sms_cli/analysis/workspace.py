@@ -220,7 +220,8 @@ def build_variants(sm, spec: AnalysisSpec, sampled: list[int], loaded=None) -> l
             model, update = sm.model, None
         else:
             model, update = variant_model(sm, vs, loaded)
-        kernel = IndexKernel(model, sm.ee_frame_id, sm.q0, layout, groups, spec.singular_tolerance, spec.task)
+        kernel = IndexKernel(model, sm.ee_frame_id, sm.q0, layout, groups, spec.singular_tolerance, spec.task,
+                             kinematics_only=bool(sm.kinematics_only))
         limits = {"joint_speed": dict(zip(layout.names, layout.q_max)), "joint_effort": dict(zip(layout.names, layout.tau_max)),
                   "wheel_speed": dict(zip(layout.wheel_names, layout.omega_max))}
         out.append(Variant("nominal" if vs is None else vs.name, kernel, update, limits))

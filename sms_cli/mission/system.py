@@ -44,6 +44,13 @@ class RobotSpec(StrictModel):
     arm_joints: list[str] | None = Field(
         None, description="actuated manipulator joints in order (default: every movable URDF joint "
                           "that is not a wheel or a spring joint, in tree order)")
+    strict: bool = Field(
+        False, description="refuse, as a lint, what is accepted with a warning: massless or point-mass links, "
+                           "inertias off the triangle inequality, non-physical inertias (as sms compile --strict)")
+    kinematics_only: bool = Field(
+        False, description="for robots with massless moving links (visual-only descriptions): give each such body a "
+                           "placeholder inertia (1e-6 of the robot's mass as a 5 cm sphere at its joint) so that "
+                           "workspace maps and kinematic indices run; dynamics stages then refuse the model")
 
 
 class WheelLimits(StrictModel):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from dataclasses import dataclass
 
@@ -48,10 +49,32 @@ def build_rigid_model(xml: str, urdf_path) -> pin.Model:
         except Exception as exc:  # noqa: BLE001 - pinocchio raises ValueError/RuntimeError/...
             model, failure = None, exc
     if failure is not None:
-        detail = err["text"] or str(failure)
-        raise InputError(problems=[Problem(f"Pinocchio could not build the model: {detail}", Location(urdf_path))])
+        detail = _urdfdom_message(err["text"]) or "the URDF parser refused the file"
+        raise InputError(problems=[Problem(f"Pinocchio could not build the model: {detail}", Location(urdf_path),
+                                           hint="the URDF lint found nothing wrong: please report this file")])
     model.gravity = pin.Motion.Zero()
     return model
+
+
+def _urdfdom_message(text: str) -> str:
+    """urdfdom's diagnostics without its own C++ source locations ("at line 243 in …/model.cpp")."""
+    lines = [ln.strip() for ln in text.splitlines()]
+    lines = [re.sub(r"^(Error|Warning):\s*", "", ln) for ln in lines if ln and not re.match(r"at line \d+ in ", ln)]
+    return "; ".join(dict.fromkeys(lines))
+
+
+#: Frame types in the order a name is looked up: a URDF link is a BODY frame, a fixed joint a
+#: FIXED_JOINT frame, a movable joint a JOINT frame. A joint and a link may share a name.
+_FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT,
+                     pin.FrameType.SENSOR)
+
+
+def find_frame(model: pin.Model, name: str) -> int | None:
+    """Frame id of a name, links first (see ``_FRAME_PREFERENCE``); None when no frame has it."""
+    for kind in _FRAME_PREFERENCE:
+        if model.existFrame(name, kind):
+            return model.getFrameId(name, kind)
+    return None
 
 
 @dataclass
@@ -78,9 +101,10 @@ def rotation_z_to(axis: np.ndarray) -> np.ndarray:
 
 
 def frame_id(model: pin.Model, name: str, what: str, where: Location | None = None) -> int:
-    """Frame id of a URDF link name; InputError with a suggestion if it does not exist."""
-    if model.existFrame(name):
-        return model.getFrameId(name)
+    """Frame id of a URDF link name (links first, then other frames); InputError with a suggestion if none."""
+    fid = find_frame(model, name)
+    if fid is not None:
+        return fid
     import difflib
 
     names = [f.name for f in model.frames]

@@ -13,6 +13,7 @@ from sms_cli.errors import InputError, Location, Problem, Warnings
 from sms_cli.mission.load import LoadedMission
 from sms_cli.model.build import AddedRotor, add_rotor, build_rigid_model, frame_id, payload_inertia, rotor_link_name
 from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_matrix
+from sms_cli.model.mass_check import add_placeholders, diagnose
 from sms_cli.model.system import Appendage, ArmJoint, Partitions, Payload, Spring, SystemModel, Wheel
 from sms_cli.model.urdf_lint import MOVABLE, UrdfInfo, lint_urdf
 
@@ -74,8 +75,18 @@ def _default_end_effector(info: UrdfInfo, arm_joint_names: list[str]) -> str:
         link = kids[0].child
 
 
-def compile_system(loaded: LoadedMission) -> SystemModel:
-    """Build the SystemModel of a mission. Raises InputError (exit 2) on any inconsistency."""
+def _refuse_lint(warnings: Warnings, urdf_path) -> None:
+    """Strict mode: the accepted-with-a-warning findings become errors."""
+    lint = warnings.lint()
+    if lint:
+        raise InputError(f"{urdf_path}: {len(lint)} finding(s) refused by strict mode (robot.strict or --strict)",
+                         [Problem(p.message, p.location, p.field, p.hint) for p in lint])
+
+
+def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
+    """Build the SystemModel of a mission. Raises InputError (exit 2) on any inconsistency.
+
+    ``strict`` (or ``robot.strict`` in the mission) refuses what is otherwise accepted with a warning."""
     mission = loaded.mission
     if mission.robot is None:
         raise InputError(problems=[Problem("this mission has no robot", _where(loaded),
@@ -86,6 +97,8 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
         raise InputError(problems=[Problem(f"URDF file not found: {urdf_path}", _where(loaded, "robot", "urdf"), "robot.urdf",
                                            "the path is relative to the mission file")])
     info = lint_urdf(urdf_path, warnings)
+    if strict or mission.robot.strict:
+        _refuse_lint(warnings, urdf_path)
     model = build_rigid_model(info.xml, urdf_path)
 
     base_link = mission.robot.base_link or info.root
@@ -261,12 +274,15 @@ def compile_system(loaded: LoadedMission) -> SystemModel:
                                                    _where(loaded, "appendages"), hint="give one amplitude per mode")])
             eta0[a.modes] = a_spec.initial_amplitudes
 
+    placeholders = _check_rigid(model, q0, info, loaded, warnings)
     sm = SystemModel(model=model, name=mission.name, urdf_text=info.xml, idx=idx, wheels=wheels, arm=arm, springs=springs,
                      appendages=appendages, payloads=payloads, ee_frame_id=ee_fid, base_frame_id=base_fid,
                      q0=q0, v0=v0, eta0=eta0, etadot0=np.zeros(start), warnings=list(warnings))
     sm.link_parents = {info.root: "world"}
     sm.link_parents.update({j.child: j.parent for j in info.joints.values()})
     sm.link_parents.update({rotor_link_name(r.name): r.mount_frame for r, _, _ in rotors})
+    sm.link_frames = {name: frame_id(model, name, "link") for name in sm.link_parents}
+    sm.kinematics_only = placeholders
     for p in mission.payloads:
         if p.attached:
             sm.attach_payload(p.name)
@@ -283,15 +299,42 @@ def _joint_axis(model: pin.Model, data: pin.Data, jid: int) -> np.ndarray:
     return col[3:6] / np.linalg.norm(col[3:6])
 
 
+def _check_rigid(model: pin.Model, q0: np.ndarray, info: UrdfInfo, loaded: LoadedMission, warnings: Warnings) -> list[str]:
+    """The rigid mass matrix (wheels added, payloads detached) must be positive definite.
+
+    Refused with the joints and links at fault, unless ``robot.kinematics_only``: then the massless
+    moving bodies get placeholder inertias, listed in the returned names and in a warning."""
+    kin = loaded.mission.robot.kinematics_only
+    problems = diagnose(model, q0, info, kinematics_hint=not kin)
+    if not problems:
+        if kin:
+            warnings.add("robot.kinematics_only is set but every moving body has inertia: nothing was replaced, "
+                         "and the dynamics stages run", _where(loaded, "robot", "kinematics_only"))
+        return []
+    if not kin:
+        raise InputError(f"{info.path}: the robot's mass matrix is singular", problems)
+    given = add_placeholders(model, q0, info)
+    left = diagnose(model, q0, info)
+    if left:
+        raise InputError(f"{info.path}: the robot's mass matrix stays singular with placeholder inertias", left)
+    warnings.add(f"kinematics only: placeholder inertias on {', '.join(given)}; the dynamics stages (simulate, "
+                 "synthesize, dynamic indices, modal analysis) refuse this model", _where(loaded, "robot", "kinematics_only"),
+                 "robot.kinematics_only", "give these links an <inertial> for dynamics")
+    return given
+
+
 def _check_physical(sm: SystemModel, loaded: LoadedMission, info: UrdfInfo, warnings: Warnings) -> None:
-    """The augmented mass matrix must be positive definite; per appendage, M_jj − LᵀL ⪰ 0 is expected
-    (the modes cannot carry more inertia than the appendage's rigid body at the junction)."""
+    """The augmented mass matrix must be positive definite (the rigid one is, ``_check_rigid``); per
+    appendage, M_jj − LᵀL ⪰ 0 is expected (the modes cannot carry more inertia than the appendage's
+    rigid body at the junction)."""
+    if not sm.appendages:
+        return
     M = sm.mass_matrix(sm.q0)
     eig = np.linalg.eigvalsh(M)
     if eig.min() <= 1e-12 * max(eig.max(), 1.0):
         raise InputError(problems=[Problem(
             f"the mass matrix with modes is not positive definite (smallest eigenvalue {eig.min():.3g}): "
-            "participation factors exceed what the rigid inertia allows, or a body is massless",
+            "the participation factors exceed what the rigid inertia allows",
             _where(loaded, "appendages"), hint="check the participation factors (units, ordering) and the appendage link inertia")])
     for i, (spec, a) in enumerate(zip(loaded.mission.appendages, sm.appendages)):
         M_jj = _link_inertia_at_frame(sm, info, spec.link, a.frame_id)
@@ -317,5 +360,5 @@ def _link_inertia_at_frame(sm: SystemModel, info: UrdfInfo, link: str, frame_id:
     Y_link = pin.Inertia(mass, np.asarray(xyz, float), I_c)  # in the link frame
     d = sm.model.createData()
     pin.framesForwardKinematics(sm.model, d, sm.q0)
-    link_to_frame = d.oMf[frame_id].actInv(d.oMf[sm.model.getFrameId(link)])
+    link_to_frame = d.oMf[frame_id].actInv(d.oMf[sm.link_frames[link]])
     return link_to_frame.act(Y_link).matrix()

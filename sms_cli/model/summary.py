@@ -53,16 +53,17 @@ def model_summary(sm: SystemModel) -> dict[str, Any]:
         "coupled_frequencies_hz": coupled / (2 * math.pi),
         "payloads": [{"name": p.name, "frame": sm.model.frames[p.frame_id].name, "mass_kg": p.inertia_in_joint.mass,
                       "attached": p.attached} for p in sm.payloads.values()],
+        "kinematics_only": sm.kinematics_only,
         "warnings": [w.render() for w in sm.warnings],
     }
 
 
-def compile_summary(mission_path: Path) -> dict[str, Any]:
-    """Load, compile and summarise a mission (plain JSON-ready data)."""
+def compile_summary(mission_path: Path, strict: bool = False) -> dict[str, Any]:
+    """Load, compile and summarise a mission (plain JSON-ready data); ``strict`` refuses lint findings."""
     from sms_cli.results import _jsonable
 
     loaded = load_mission(mission_path)
-    sm = compile_system(loaded)
+    sm = compile_system(loaded, strict=strict)
     out = model_summary(sm)
     out["mission_file"] = str(mission_path)
     return _jsonable(out)
@@ -111,6 +112,9 @@ def format_summary(s: dict[str, Any]) -> str:
         lines.append("coupled   free-free elastic frequencies: " + ", ".join(f"{x:.4g}" for x in s["coupled_frequencies_hz"]) + " Hz")
     for p in s["payloads"]:
         lines.append(f"payload   {p['name']}: {p['mass_kg']:.4g} kg at {p['frame']} ({'attached' if p['attached'] else 'detached'} at t=0)")
+    if s.get("kinematics_only"):
+        lines.append("model     KINEMATICS ONLY: placeholder inertias on " + ", ".join(s["kinematics_only"])
+                     + " (dynamics stages refuse it)")
     if s["warnings"]:
         lines.append(f"warnings  {len(s['warnings'])}:")
         lines.extend("  - " + w.replace("\n", "\n    ") for w in s["warnings"])

@@ -149,6 +149,18 @@ class SystemModel:
     warnings: list = field(default_factory=list)
     base_joint_id: int = 1
     link_parents: dict[str, str] = field(default_factory=dict)  # URDF link (and wheel rotor) -> parent link; base -> "world"
+    link_frames: dict[str, int] = field(default_factory=dict)  # the same links -> their BODY frame id (names may clash with joints)
+    kinematics_only: list[str] = field(default_factory=list)  # links given a placeholder inertia (robot.kinematics_only)
+
+    def require_dynamics(self, what: str) -> None:
+        """Refuse (exit 2) a stage that needs real inertias on a kinematics-only model."""
+        if self.kinematics_only:
+            from sms_cli.errors import InputError, Problem
+
+            raise InputError(problems=[Problem(
+                f"{what} needs the robot's inertias, but links {', '.join(self.kinematics_only)} have placeholder "
+                "inertias (robot.kinematics_only)", field="robot.kinematics_only",
+                hint="give these links an <inertial> in the URDF and remove robot.kinematics_only")])
 
     def __post_init__(self) -> None:
         self.data = self.model.createData()

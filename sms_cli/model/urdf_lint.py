@@ -1,17 +1,22 @@
 """URDF lint with line numbers, before Pinocchio sees the file.
 
-Errors (the file is rejected, exit 2): XML syntax, undefined parent/child links, several roots,
-a link with two parents, duplicate names, unknown joint types, non-positive mass, inertia not
-positive definite or violating the triangle inequality, zero axes.
-Warnings (accepted, reported): non-unit axes (normalised), revolute/prismatic joints without
-``<limit>`` (accepted as SPART does: unbounded position, no effort/velocity limit).
+Errors (the file is rejected, exit 2): XML syntax, a number that is not a finite decimal
+(``sms_cli.model.urdf_numbers``), undefined parent/child links, several roots, a link with two
+parents, links cut off from the base (a loop of joints), duplicate names, unknown joint types, a
+negative mass, zero axes.
+Accepted and reported (``sms_cli.model.urdf_inertia``): massless frame links, point masses,
+inertias off the triangle inequality or negative by rounding, non-physical inertias (with the
+likely cause); with ``strict`` these are errors, as a lint. Also warned: non-unit axes
+(normalised), revolute/prismatic joints without ``<limit>`` (accepted as SPART does: unbounded
+position, no effort/velocity limit). Whether the assembled model is usable (mass matrix positive
+definite) is checked after the build, in ``sms_cli.model.mass_check``.
 
 ``lint_urdf`` returns the cleaned XML (axes normalised, missing limits filled with huge
 values so that urdfdom accepts it) and a ``UrdfInfo`` describing the tree.
 """
-
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,11 +25,12 @@ import numpy as np
 from lxml import etree
 
 from sms_cli.errors import InputError, Location, Problem, Warnings
+from sms_cli.model.urdf_inertia import KIND_SUMMARY, classify_inertial
+from sms_cli.model.urdf_numbers import check_numbers, number, vector
 
 MOVABLE = {"revolute", "continuous", "prismatic"}
 SUPPORTED = MOVABLE | {"fixed"}
 UNBOUNDED = 1e10  # stand-in for "no limit" in the cleaned XML; reported as inf
-INERTIA_RTOL = 1e-9
 
 
 @dataclass
@@ -72,37 +78,8 @@ class UrdfInfo:
         return out
 
 
-def _f(text: str | None, default: float = 0.0) -> float:
-    if text is None or text.strip() == "":
-        return default
-    return float(text)
-
-
-def _vec(text: str | None, default: tuple[float, ...]) -> np.ndarray:
-    if text is None:
-        return np.array(default, dtype=float)
-    parts = text.split()
-    return np.array([float(p) for p in parts], dtype=float)
-
-
-def check_inertia(ixx: float, iyy: float, izz: float, ixy: float, ixz: float, iyz: float) -> str | None:
-    """Why a rotational inertia (about the CoM) is not physical, or None if it is."""
-    tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    eig = np.linalg.eigvalsh(tensor)
-    scale = max(abs(eig).max(), 1e-300)
-    if eig.min() <= -INERTIA_RTOL * scale or eig.min() <= 0.0 and eig.max() <= 0.0:
-        return f"inertia is not positive definite (principal moments {', '.join(f'{e:.6g}' for e in eig)})"
-    a, b, c = eig
-    tol = INERTIA_RTOL * scale
-    if a + b < c - tol:
-        return (f"principal moments {a:.6g}, {b:.6g}, {c:.6g} violate the triangle inequality "
-                f"({a:.6g} + {b:.6g} < {c:.6g}): no mass distribution has this inertia")
-    return None
-
-
-def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
-    """Check a URDF file; raise InputError listing every error, collect warnings, return the tree."""
-    path = Path(path)
+def _read_xml(path: Path):
+    """The parsed <robot> element of a URDF file (InputError with the line on syntax errors)."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -113,18 +90,69 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
     except etree.XMLSyntaxError as exc:
         line, col = (exc.position if exc.position else (0, 0))
         raise InputError(problems=[Problem(f"URDF is not well-formed XML: {exc.msg}", Location(path, line, col))]) from None
+    if root.tag != "robot":
+        raise InputError(problems=[Problem(f"root element is <{root.tag}>, expected <robot>", Location(path, root.sourceline or 0))])
+    return root
 
+
+def _lint_inertials(link, name: str, loc, problems: list[Problem], found: dict[str, list]) -> tuple | None:
+    """(mass, origin xyz, origin rpy, moments) of a link's <inertial>, classifying what it says."""
+    inertial = link.find("inertial")
+    if inertial is None:
+        return None
+    mass_el, ine, org = inertial.find("mass"), inertial.find("inertia"), inertial.find("origin")
+    mass = number(mass_el, "value", 0.0)
+    moments = [number(ine, k, 0.0) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
+    finding = classify_inertial(name, mass, moments)
+    if finding is not None:
+        where = loc(ine if ine is not None and finding.kind not in ("negative_mass", "massless") else (mass_el if mass_el is not None else inertial))
+        if finding.kind == "negative_mass":
+            problems.append(Problem(finding.message, where, hint=finding.hint))
+            return None
+        found.setdefault(finding.kind, []).append((finding, where))
+    return (mass, np.array(vector(org, "xyz", (0.0, 0.0, 0.0))), np.array(vector(org, "rpy", (0.0, 0.0, 0.0))), moments)
+
+
+def _report_inertials(found: dict[str, list], warnings: Warnings) -> None:
+    """One warning per accepted kind (links listed with lines), one per non-physical inertia."""
+    for kind, items in found.items():
+        if kind == "nonphysical":
+            for finding, where in items:
+                warnings.add(finding.message, where, "inertial", finding.hint, lint=True)
+            continue
+        head, hint = KIND_SUMMARY[kind]
+        names = [f"{f.message} (line {w.line})" for f, w in items[:6]]
+        more = f" and {len(items) - 6} more" if len(items) > 6 else ""
+        warnings.add(f"{len(items)} {head}: {', '.join(names)}{more}", items[0][1], "inertial", hint, lint=True)
+
+
+def _unreachable(root_link: str, links: dict[str, int], children: dict[str, list[str]], joints: dict) -> list[str]:
+    """Links that no chain of joints connects to the root link (they sit on a loop of joints)."""
+    seen, stack = {root_link}, [root_link]
+    while stack:
+        for jn in children.get(stack.pop(), []):
+            child = joints[jn].child
+            if child not in seen:
+                seen.add(child)
+                stack.append(child)
+    return [name for name in links if name not in seen]
+
+
+def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
+    """Check a URDF file; raise InputError listing every error, collect warnings, return the tree."""
+    path = Path(path)
+    root = _read_xml(path)
     problems: list[Problem] = []
 
     def loc(el) -> Location:
         return Location(path, el.sourceline or 0)
 
-    if root.tag != "robot":
-        raise InputError(problems=[Problem(f"root element is <{root.tag}>, expected <robot>", loc(root))])
+    check_numbers(root, path, problems, warnings)
 
     links: dict[str, int] = {}
     masses: dict[str, float] = {}
     inertials: dict[str, tuple] = {}
+    found: dict[str, list] = {}
     for link in root.findall("link"):
         name = link.get("name")
         if not name:
@@ -134,29 +162,12 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
             problems.append(Problem(f"duplicate link name '{name}' (first at line {links[name]})", loc(link)))
             continue
         links[name] = link.sourceline or 0
-        inertial = link.find("inertial")
-        if inertial is None:
-            continue
-        mass_el = inertial.find("mass")
-        mass = _f(mass_el.get("value") if mass_el is not None else None, 0.0)
-        if mass <= 0.0:
-            problems.append(Problem(f"link '{name}' has non-positive mass {mass:g} kg", loc(mass_el if mass_el is not None else inertial),
-                                    hint="give a positive mass, or remove <inertial> for a massless frame link"))
-            continue
-        masses[name] = mass
-        ine = inertial.find("inertia")
-        if ine is None:
-            problems.append(Problem(f"link '{name}' has a mass but no <inertia>", loc(inertial),
-                                    hint="add <inertia ixx= iyy= izz= ixy= ixz= iyz=/> about the CoM"))
-            continue
-        vals = [_f(ine.get(k)) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
-        org = inertial.find("origin")
-        inertials[name] = (mass, _vec(org.get("xyz") if org is not None else None, (0.0, 0.0, 0.0)),
-                           _vec(org.get("rpy") if org is not None else None, (0.0, 0.0, 0.0)), vals)
-        why = check_inertia(*vals)
-        if why:
-            problems.append(Problem(f"link '{name}': {why}", loc(ine),
-                                    hint="inertia is about the link CoM in the <inertial> frame; check units (kg m^2) and signs of products"))
+        data = _lint_inertials(link, name, loc, problems, found)
+        if data is not None:
+            inertials[name] = data
+            if data[0] > 0.0:
+                masses[name] = data[0]
+    _report_inertials(found, warnings)
 
     joints: dict[str, UrdfJoint] = {}
     parent_of: dict[str, str] = {}
@@ -182,8 +193,6 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
             if not link_name:
                 problems.append(Problem(f"joint '{name}' has no <{role} link=...>", loc(j)))
             elif link_name not in links:
-                import difflib
-
                 close = difflib.get_close_matches(link_name, list(links), n=1)
                 problems.append(Problem(f"joint '{name}': {role} link '{link_name}' is not defined", loc(el if el is not None else j),
                                         hint=f"did you mean '{close[0]}'?" if close else "define the <link> or fix the name"))
@@ -193,13 +202,16 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
             problems.append(Problem(f"link '{child}' has two parent joints ('{parent_of[child]}' and '{name}')", loc(j),
                                     hint="a URDF is a tree: each link has at most one parent joint"))
             continue
+        if child == parent:
+            problems.append(Problem(f"joint '{name}' connects link '{child}' to itself", loc(j)))
+            continue
         axis = np.array([1.0, 0.0, 0.0])
         ax_el = j.find("axis")
         if kind in MOVABLE:
-            axis = _vec(ax_el.get("xyz") if ax_el is not None else None, (1.0, 0.0, 0.0))
-            norm = float(np.linalg.norm(axis)) if axis.size == 3 else 0.0
-            if axis.size != 3 or norm < 1e-12:
-                problems.append(Problem(f"joint '{name}' has a zero or malformed axis", loc(ax_el if ax_el is not None else j),
+            axis = np.array(vector(ax_el, "xyz", (1.0, 0.0, 0.0)))
+            norm = float(np.linalg.norm(axis))
+            if norm < 1e-12:
+                problems.append(Problem(f"joint '{name}' has a zero axis", loc(ax_el if ax_el is not None else j),
                                         hint='give a unit axis, e.g. <axis xyz="0 0 1"/>'))
                 continue
             if abs(norm - 1.0) > 1e-9:
@@ -218,14 +230,15 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
                     lim.set(k, repr(v))
             else:
                 info.has_limit = True
-                info.lower = _f(lim.get("lower"), 0.0)
-                info.upper = _f(lim.get("upper"), 0.0)
+                info.lower = number(lim, "lower", 0.0)
+                info.upper = number(lim, "upper", 0.0)
                 if info.lower > info.upper:
-                    problems.append(Problem(f"joint '{name}': lower limit {info.lower:g} > upper limit {info.upper:g}", loc(lim)))
+                    problems.append(Problem(f"joint '{name}': lower limit {info.lower:g} > upper limit {info.upper:g}", loc(lim),
+                                            hint="swap them"))
         if lim is not None and info.has_limit or (kind == "continuous" and lim is not None):
-            eff, vel = _f(lim.get("effort"), 0.0), _f(lim.get("velocity"), 0.0)
-            info.effort = eff if eff > 0 else math.inf
-            info.velocity = vel if vel > 0 else math.inf
+            eff, vel = number(lim, "effort", 0.0), number(lim, "velocity", 0.0)
+            info.effort = eff if 0 < eff < UNBOUNDED else math.inf
+            info.velocity = vel if 0 < vel < UNBOUNDED else math.inf
         joints[name] = info
         parent_of[child] = name
         children.setdefault(parent, []).append(name)
@@ -237,6 +250,13 @@ def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
                                 hint="connect every link to the tree with a joint (fixed if rigid)"))
     elif not roots and links:
         problems.append(Problem("the URDF has no root link (the joints form a loop)", Location(path, root.sourceline or 0)))
+    elif roots:
+        cut = _unreachable(roots[0], links, children, joints)
+        if cut:
+            loop = [jn for jn, jt in joints.items() if jt.child in cut]
+            problems.append(Problem(f"links {', '.join(cut)} are not connected to the base '{roots[0]}': "
+                                    f"joints {', '.join(loop)} form a loop", Location(path, links[cut[0]]),
+                                    hint="a URDF is a tree: give one of these links its parent in the tree"))
     if not links:
         problems.append(Problem("the URDF defines no link", loc(root)))
 

@@ -82,8 +82,8 @@ def draw_robot(sm, target: Path | None = None, title: str = "") -> bytes:
     pin.updateFramePlacements(sm.model, sm.data)
 
     def pose(name: str):
-        fid = sm.model.getFrameId(name)
-        if fid >= sm.model.nframes:
+        fid = sm.link_frames.get(name)
+        if fid is None:
             return None
         M = sm.data.oMf[fid]
         return M.rotation.copy(), M.translation.copy()

@@ -13,6 +13,7 @@ INDEX_LABELS = {
     "K_m": ("K^m_ω0: joint share of the base attitude disturbance", "—"),
     "K_r": ("K^r_ω0: wheel share", "—"),
     "mu_fixed": ("manipulability, fixed base", "—"),
+    "fixed_cond": ("σmin/σmax of the fixed-base Jacobian", "—"),
     "mu_gjm": ("manipulability of the generalized Jacobian (free floating)", "—"),
     "gjm_cond": ("σmin/σmax of the generalized Jacobian", "—"),
     "singular": ("singular configuration (fraction = mean)", "—"),

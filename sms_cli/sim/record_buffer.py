@@ -30,7 +30,7 @@ class RecordBuffer:
             from sms_cli.sim.compiled.kinematics import SampleKinematics
 
             self.kinematics = SampleKinematics(sm)
-        self.link_fids = [sm.model.getFrameId(n) for n in sm.link_parents]
+        self.link_fids = [sm.link_frames[n] for n in sm.link_parents]
         self._rows: list[tuple] = []
 
     def __len__(self) -> int:

@@ -53,6 +53,7 @@ def run_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None 
         raise InputError(problems=[Problem("this mission has no 'simulation:' section", loaded.source.locate(()),
                                            hint="add simulation: {dt, control_rate, attitude, arm, phases: [...]}")])
     sm = compile_system(loaded)
+    sm.require_dynamics("the simulation")
     results = ResultsDir(out_dir)
     mcap_path = Path(mcap_path) if mcap_path else results.file("simulation.mcap")
     summary = model_summary(sm)

@@ -55,6 +55,7 @@ def run_synthesis(loaded, out_dir: Path | str, plots: bool = True) -> dict[str, 
 
     out = Path(out_dir)
     sm = compile_system(loaded)
+    sm.require_dynamics("gain synthesis")
     t0 = time.perf_counter()
     if spec.law == "lmi":
         section, gains, poles, regions = _run_lmi(sm, spec, out)

@@ -22,7 +22,7 @@ class SampleKinematics:
 
         self.sm = sm
         self.links = list(sm.link_parents)
-        fids = [sm.model.getFrameId(n) for n in self.links] + [sm.ee_frame_id]
+        fids = [sm.link_frames[n] for n in self.links] + [sm.ee_frame_id]
         row = {name: i for i, name in enumerate(self.links)}
         parent_rows = np.array([row.get(sm.link_parents[n], -1) for n in self.links] + [-1], dtype=np.int64)
         self.frames = (*frame_table(sm.model, fids), parent_rows)
