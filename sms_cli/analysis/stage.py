@@ -172,7 +172,8 @@ def format_analysis(section: dict) -> str:
     keys = ("K_m", "mu_gjm", "mu_ratio", "mu_dyn", "mu_null_lin_norm", "h_ratio", "joint_limit_margin")
     for name, v in section["variants"].items():
         lines.append(f"[{name}]")
-        for k in keys:
+        shown = keys if "mu_gjm" in v["indices"] else ("mu_fixed",) + keys  # kinematics-only: the fixed-base μ
+        for k in shown:
             d = v["indices"].get(k)
             if d and d["min"] is not None:
                 lines.append(f"  {k:20s} min {d['min']:.4g}  p50 {d.get('p50', float('nan')):.4g}  max {d['max']:.4g}")
