@@ -4,15 +4,27 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
+import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
-from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Inertia, Length
+from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Inertia, Length, SpecError
 
 
 class StrictModel(BaseModel):
-    """A mission-file section: unknown keys are errors (with a nearest-key suggestion)."""
+    """A mission-file section: unknown keys are errors (with a nearest-key suggestion); plain
+    numbers must be finite (quantities check it in ``units.to_si``)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=False, populate_by_name=False)
+    model_config = ConfigDict(extra="forbid", frozen=False, populate_by_name=False, allow_inf_nan=False)
+
+
+def unique(names: list[str], what: str, field: str, key: str = "") -> None:
+    """Refuse a name listed twice in the list ``field`` (``key``: the item's field holding it)."""
+    first: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in first:
+            raise SpecError(f"{what} '{name}' is listed twice (items {first[name]} and {i})",
+                            (field, i, key) if key else (field, i), "remove one of the two entries")
+        first[name] = i
 
 
 def _fixed_length(n: int):
@@ -32,10 +44,23 @@ Vector6 = Annotated[list[Dimensionless], _fixed_length(6), Field(description="6 
 
 
 def _inertia6(v: list[float]) -> list[float]:
+    """[ixx, iyy, izz(, ixy, ixz, iyz)] → 6 numbers, refused unless a rigid body can have it:
+    principal moments ≥ 0 and each at most the sum of the other two (kg m^2)."""
     if len(v) == 3:
-        return [v[0], v[1], v[2], 0.0, 0.0, 0.0]
+        v = [v[0], v[1], v[2], 0.0, 0.0, 0.0]
     if len(v) != 6:
         raise ValueError("inertia is [ixx, iyy, izz] or [ixx, iyy, izz, ixy, ixz, iyz]")
+    ixx, iyy, izz, ixy, ixz, iyz = v
+    moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
+    tol = 1e-9 * max(float(np.abs(moments).sum()), 1e-300)
+    shown = ", ".join(f"{m:.6g}" for m in moments)
+    if moments[0] < -tol:
+        raise SpecError(f"principal moments of inertia {shown} kg m^2: a moment of inertia cannot be negative",
+                        hint="check the signs: ixx, iyy, izz are positive (products of inertia may be negative)")
+    if moments[2] > moments[0] + moments[1] + tol:
+        raise SpecError(f"principal moments of inertia {shown} kg m^2 break the triangle inequality "
+                        f"({moments[2]:.6g} > {moments[0]:.6g} + {moments[1]:.6g}): no rigid body has this inertia",
+                        hint="each principal moment is at most the sum of the other two (a thin rod along z: [I, I, 0])")
     return v
 
 

@@ -6,6 +6,8 @@ Paths inside the mission (``robot.urdf``) are resolved relative to the mission f
 from __future__ import annotations
 
 import difflib
+import os
+import re
 import types
 import typing
 from dataclasses import dataclass
@@ -15,7 +17,9 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from sms_cli.errors import InputError, Problem
+from sms_cli.inputs import absolute
 from sms_cli.mission.schema import Mission
+from sms_cli.mission.units import SpecError, clip
 from sms_cli.mission.yaml_source import SourceMap, load_yaml
 
 
@@ -79,12 +83,19 @@ def _suggest(bad: str, candidates: list[str]) -> str:
 
 
 _UNION_MARKERS = ("function-", "tagged-union[", "literal[", "union[", "nullable[")
+# the branch labels pydantic puts in the location of a union of plain types (float | str, float | list[float])
+_BRANCH_LABEL = re.compile(r"^(?:float|int|str|bool|(?:list|dict|tuple)\[.*\])$")
 
 
 def _clean_loc(loc) -> tuple:
     """Error location without pydantic's union/validator markers (the mission-file path only)."""
-    return tuple(p for p in loc if not (isinstance(p, str) and p.startswith(_UNION_MARKERS))
-                 and not (isinstance(p, str) and p.endswith("Spec")))
+    return tuple(p for p in loc if not (isinstance(p, str) and (p.startswith(_UNION_MARKERS) or p.endswith("Spec")
+                                                                 or _BRANCH_LABEL.match(p))))
+
+
+def _is_branch_noise(kind: str) -> bool:
+    """A union branch's complaint that the input is not its type (shown only when no branch says more)."""
+    return kind.endswith("_type") or kind == "literal_error"
 
 
 def validation_problems(exc: ValidationError, root: type[BaseModel], smap: SourceMap,
@@ -95,9 +106,13 @@ def validation_problems(exc: ValidationError, root: type[BaseModel], smap: Sourc
     # a union field (a law spec or a keyword such as 'from_gains') reports one error per branch:
     # when a branch recognised the input's tag, the other branches' complaints are noise
     tagged = {_clean_loc(e["loc"]) for e in errors if "tagged-union[" in "".join(map(str, e["loc"]))}
+    # likewise when one branch of a union of plain types said more than "not my type"
+    telling = [_clean_loc(e["loc"]) for e in errors if not _is_branch_noise(e["type"])]
     for err in errors:
         loc = _clean_loc(err["loc"])
         if err["type"] == "literal_error" and loc in tagged:
+            continue
+        if _is_branch_noise(err["type"]) and any(t[:len(loc)] == loc for t in telling):
             continue
         full = prefix + loc
         dotted = ".".join(str(p) for p in full) or "(top level)"
@@ -111,14 +126,25 @@ def validation_problems(exc: ValidationError, root: type[BaseModel], smap: Sourc
         elif kind == "missing":
             problems.append(Problem("required key is missing", smap.locate(full[:-1]), dotted,
                                     f"add '{loc[-1]}:' here"))
+        elif kind == "finite_number":
+            problems.append(Problem("not a finite number (NaN or infinity)", smap.locate(full), dotted,
+                                    "write a finite number (.nan and .inf are not accepted)"))
         else:
+            cause = (err.get("ctx") or {}).get("error")
+            hint = ""
+            if isinstance(cause, SpecError):
+                full = full + tuple(cause.at)
+                dotted = ".".join(str(p) for p in full)
+                hint = cause.hint
             msg = err["msg"]
             if msg.startswith("Value error, "):
                 msg = msg[len("Value error, "):]
             given = err.get("input")
             if isinstance(given, (str, int, float)) and not isinstance(given, bool):
-                msg = f"{msg} (got {given!r})"
-            problems.append(Problem(msg, smap.locate(full), dotted))
+                shown = clip(given)
+                if shown not in msg:
+                    msg = f"{msg} (got {shown})"
+            problems.append(Problem(msg, smap.locate(full), dotted, hint))
     return problems
 
 
@@ -139,9 +165,10 @@ def _merge(parent: Any, child: Any) -> Any:
     return child
 
 
-def _load_tree(path: Path, chain: tuple[Path, ...] = ()) -> tuple[dict, SourceMap]:
-    """A mission file's data with its ``extends`` chain applied (parents first)."""
-    data, smap = load_yaml(path)
+def _load_tree(path: Path, chain: tuple[Path, ...] = (), named_at=None) -> tuple[dict, SourceMap]:
+    """A mission file's data with its ``extends`` chain applied (parents first); ``named_at`` is
+    the ``extends:`` that named this file."""
+    data, smap = load_yaml(path, named_at, "extends" if named_at else "mission file")
     if not isinstance(data, dict):
         raise InputError(problems=[Problem("a mission file is a mapping (key: value) at the top level",
                                            smap.locate(()), hint="start from one of the files in missions/")])
@@ -151,13 +178,10 @@ def _load_tree(path: Path, chain: tuple[Path, ...] = ()) -> tuple[dict, SourceMa
     where = smap.locate(("extends",))
     if not isinstance(parent_ref, str):
         raise InputError(problems=[Problem("extends: expected the path of another mission file", where, "extends")])
-    parent_path = (path.parent / parent_ref).resolve()
-    if parent_path in chain + (path.resolve(),):
+    parent_path = absolute(path.parent / parent_ref)
+    if parent_path in chain + (absolute(path),):
         raise InputError(problems=[Problem(f"extends forms a cycle through {parent_path.name}", where, "extends")])
-    if not parent_path.exists():
-        raise InputError(problems=[Problem(f"extends: no such file {parent_path}", where, "extends",
-                                           "the path is relative to this mission file")])
-    parent_data, parent_smap = _load_tree(parent_path, chain + (path.resolve(),))
+    parent_data, parent_smap = _load_tree(parent_path, chain + (absolute(path),), where)
     smap.inherit(parent_smap)
     return _merge(parent_data, data), smap
 
@@ -165,14 +189,14 @@ def _load_tree(path: Path, chain: tuple[Path, ...] = ()) -> tuple[dict, SourceMa
 def load_mission(path: Path | str) -> LoadedMission:
     """Read and validate a mission file (with its ``extends`` chain). Raises ``InputError``
     listing every problem found."""
-    path = Path(path).resolve() if Path(path).exists() else Path(path)
+    path = absolute(path) if os.path.exists(path) else Path(path)
     data, smap = _load_tree(path)
     try:
         mission = Mission.model_validate(data)
     except ValidationError as exc:
         problems = validation_problems(exc, Mission, smap)
         raise InputError(f"{path}: {len(problems)} problem(s) in the mission file", problems) from None
-    return LoadedMission(mission, path, smap, path.read_text(encoding="utf-8"))
+    return LoadedMission(mission, path, smap, smap.text)
 
 
 def mission_json_schema() -> dict[str, Any]:

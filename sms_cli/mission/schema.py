@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
-from sms_cli.mission.base import StrictModel
+from sms_cli.mission.base import StrictModel, unique
 from sms_cli.mission.system import (
     AppendageSpec,
     InitialState,
@@ -46,3 +46,10 @@ class Mission(StrictModel):
                                           "{name, metric: dotted path, max | min | equals (+ tol), unit, stage}")
     synthesis: SynthesisSpec | None = Field(
         None, description="controller/observer gain synthesis (sms synthesize): seed 004 LMI, PD, LQR or SMC")
+
+    @model_validator(mode="after")
+    def _unique_names(self):
+        unique([p.name for p in self.payloads], "payload", "payloads", "name")
+        unique([a.name for a in self.appendages], "appendage", "appendages", "name")
+        unique([s.joint for s in self.springs], "spring joint", "springs", "joint")
+        return self

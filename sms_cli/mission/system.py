@@ -19,6 +19,7 @@ from sms_cli.mission.base import (
     StrictModel,
     Vector3,
     Vector6,
+    unique,
 )
 from sms_cli.mission.units import (
     Angle,
@@ -44,6 +45,11 @@ class RobotSpec(StrictModel):
     arm_joints: list[str] | None = Field(
         None, description="actuated manipulator joints in order (default: every movable URDF joint "
                           "that is not a wheel or a spring joint, in tree order)")
+
+    @model_validator(mode="after")
+    def _check(self):
+        unique(self.arm_joints or [], "joint", "arm_joints")
+        return self
     strict: bool = Field(
         False, description="refuse, as a lint, what is accepted with a warning: massless or point-mass links, "
                            "inertias off the triangle inequality, non-physical inertias (as sms compile --strict)")
@@ -118,6 +124,12 @@ class WheelsSpec(StrictModel):
     joints: list[UrdfWheel] = Field(default_factory=list)
     declared: list[DeclaredWheel] = Field(default_factory=list)
     arrays: list[WheelArray] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _check(self):
+        unique([w.joint for w in self.joints], "wheel joint", "joints", "joint")
+        unique([w.name for w in self.declared], "wheel", "declared", "name")
+        return self
 
 
 class Mode(StrictModel):

@@ -64,7 +64,11 @@ _BASE_UNITS: dict[str, tuple[float, Dim]] = {
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _QUANTITY_RE = re.compile(rf"^\s*({_NUMBER})\s*(.*?)\s*$")
-_TOKEN_RE = re.compile(r"([A-Za-z°]+)(?:\^?([-+]?\d+))?")
+_TOKEN_RE = re.compile(r"([A-Za-z°]+)(?:\^?([-+]?\d{1,2}))?")
+#: Longest quantity string read (characters); longer ones are refused before parsing.
+MAX_QUANTITY_CHARS = 200
+#: Characters of a user's value echoed in a message.
+ECHO_CHARS = 60
 
 #: Named dimensions of the quantity types (used in messages and the JSON Schema).
 DIMENSIONS: dict[str, Dim] = {
@@ -108,8 +112,34 @@ _EXAMPLES = {
 }
 
 
-class UnitError(ValueError):
+class SpecError(ValueError):
+    """A mission-schema check that failed: the message, where below the validated value
+    (a key path such as ``("joints", 2)``) and how to fix it (shown as ``fix:``)."""
+
+    def __init__(self, message: str, at: tuple = (), hint: str = ""):
+        super().__init__(message)
+        self.at = tuple(at)
+        self.hint = hint
+
+
+class UnitError(SpecError):
     """A quantity string that cannot be read or has the wrong dimension."""
+
+
+def clip(value: Any, n: int = ECHO_CHARS) -> str:
+    """``repr(value)`` cut to about ``n`` characters with "…" (for echoing user input in messages)."""
+    text = repr(value)
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _a(noun: str) -> str:
+    """``noun`` with its indefinite article ("an angle", "a mass")."""
+    return f"{'an' if noun[0] in 'aeiou' else 'a'} {noun}"
+
+
+def _units_of(wanted: Dim) -> str:
+    """The single-token units of a dimension (for messages), e.g. "deg, rad, rev" for an angle."""
+    return ", ".join(sorted(u for u, (_, d) in _BASE_UNITS.items() if d != (0, 0, 0, 0) and _compatible(d, wanted)))
 
 
 def _parse_unit_expression(expr: str) -> tuple[float, Dim]:
@@ -128,10 +158,13 @@ def _parse_unit_expression(expr: str) -> tuple[float, Dim]:
             m = _TOKEN_RE.fullmatch(raw)
             if not m or m.group(1) not in _BASE_UNITS:
                 known = ", ".join(sorted(_BASE_UNITS))
-                raise UnitError(f"unknown unit '{raw}' (known units: {known})")
+                raise UnitError(f"unknown unit {clip(raw)}", hint=f"known units: {known}")
             f, d = _BASE_UNITS[m.group(1)]
             p = sign * int(m.group(2) or 1)
-            factor *= f**p
+            try:
+                factor *= f**p
+            except OverflowError:
+                raise UnitError(f"unit {clip(expr)} is out of range") from None
             for k in range(4):
                 dim[k] += d[k] * p
     return factor, (dim[0], dim[1], dim[2], dim[3])
@@ -148,37 +181,50 @@ def _compatible(given: Dim, wanted: Dim) -> bool:
 def to_si(value: Any, dimension: str) -> float:
     """Convert a bare number (already SI) or a ``"<number> <unit>"`` string to SI.
 
-    Raises UnitError with the expected dimension and an example when the string cannot
-    be read or its unit has another dimension.
+    A string without a unit (``"1e2"``) is SI, like a bare number. Raises UnitError (with the
+    expected dimension and an example) when the value cannot be read, its unit has another
+    dimension, or it is not finite (NaN, infinity, overflow).
     """
     wanted = DIMENSIONS[dimension]
+    ex = _EXAMPLES.get(dimension, "1.0")
+    fix = f"write a number (SI) or a number and a unit of {dimension}, e.g. {ex}"
     if isinstance(value, bool):
-        raise UnitError(f"expected a {dimension}, got a boolean")
+        raise UnitError(f"expected {_a(dimension)}, got a boolean", hint=fix)
     if isinstance(value, (int, float)):
-        return float(value)
+        return _finite(float(value), value, dimension, fix)
     if not isinstance(value, str):
-        raise UnitError(f"expected a {dimension} (number or string with unit), got {type(value).__name__}")
+        raise UnitError(f"expected {_a(dimension)} (number or string with unit), got {type(value).__name__}", hint=fix)
+    if len(value) > MAX_QUANTITY_CHARS:
+        raise UnitError(f"expected {_a(dimension)}, got a string of {len(value)} characters {clip(value)}", hint=fix)
     m = _QUANTITY_RE.match(value)
     if not m:
-        ex = _EXAMPLES.get(dimension, '"1.0"')
-        raise UnitError(f"cannot read '{value}' as a {dimension}: write a number and a unit, e.g. {ex}")
+        raise UnitError(f"cannot read {clip(value)} as {_a(dimension)}", hint=fix)
     number = float(m.group(1))
-    factor, dim = _parse_unit_expression(m.group(2))
+    if not m.group(2):
+        return _finite(number, value, dimension, fix)
+    try:
+        factor, dim = _parse_unit_expression(m.group(2))
+    except UnitError as exc:
+        units = _units_of(wanted)
+        raise UnitError(f"{exc} in {clip(value)}: expected {_a(dimension)}",
+                        hint=f"{fix}" + (f" (units of {dimension}: {units})" if units else "")) from None
     if not _compatible(dim, wanted):
-        ex = _EXAMPLES.get(dimension, "")
-        hint = f", e.g. {ex}" if ex else ""
-        raise UnitError(f"'{value}' is not a {dimension}{hint}")
+        raise UnitError(f"{clip(value)} is not {_a(dimension)}", hint=fix)
     if wanted[3] == 0 and dim[3] != 0:
         factor /= (2.0 * math.pi) ** dim[3]  # angle where none is wanted: count cycles
-    return number * factor
+    return _finite(number * factor, value, dimension, fix)
+
+
+def _finite(x: float, given: Any, dimension: str, fix: str) -> float:
+    if not math.isfinite(x):
+        raise UnitError(f"{clip(given)} is not a finite {dimension} (NaN or infinity)",
+                        hint=fix.replace("write", "write a finite value:", 1))
+    return x
 
 
 def _quantity(dimension: str) -> Any:
     def validate(v: Any) -> float:
-        try:
-            return to_si(v, dimension)
-        except UnitError as exc:
-            raise ValueError(str(exc)) from None
+        return to_si(v, dimension)  # UnitError is a ValueError: pydantic reports it with its hint
 
     schema = {
         "anyOf": [
