@@ -16,6 +16,7 @@ see ``sms_cli.check.metric_units``); a metric without a suffix is SI in the dime
 
 from __future__ import annotations
 
+import math
 from typing import Literal, Union
 
 from pydantic import Field, field_validator, model_validator
@@ -69,7 +70,7 @@ class RequirementSpec(StrictModel):
     def _check_units(self) -> None:
         """Bounds and display unit must be readable and of the metric's dimension."""
         from sms_cli.check.metric_units import convert, metric_unit, parse_bound
-        from sms_cli.mission.units import UnitError
+        from sms_cli.mission.units import SpecError, UnitError
 
         m_unit = metric_unit(self.full_metric())
         try:
@@ -81,6 +82,14 @@ class RequirementSpec(StrictModel):
                 value, unit = parse_bound(b, self.unit or m_unit)
                 if unit and (self.unit or m_unit):
                     convert(value, unit, self.unit or m_unit)
+                if not math.isfinite(value):
+                    raise UnitError(f"bound {b!r} is not a finite number")
+            if self.min is not None and self.max is not None:
+                shown = self.unit or m_unit
+                lo, hi = (convert(*parse_bound(b, shown), shown) for b in (self.min, self.max))
+                if lo > hi:
+                    raise SpecError(f"requirement '{self.name}': min ({self.min}) is above max ({self.max}); "
+                                    "no value can meet it", ("min",), "swap min and max")
         except UnitError as exc:
             where = f"the metric is in {m_unit}" if m_unit else "the metric's unit is not known from its name"
             raise ValueError(f"requirement '{self.name}': {exc} ({where}; 'unit' is {self.unit or 'not set'})") from None
