@@ -64,6 +64,10 @@ def compile_summary(mission_path: Path, strict: bool = False) -> dict[str, Any]:
 
     loaded = load_mission(mission_path)
     sm = compile_system(loaded, strict=strict)
+    if loaded.mission.simulation is not None:
+        from sms_cli.sim.validate import validate_simulation
+
+        validate_simulation(sm, loaded)
     out = model_summary(sm)
     out["mission_file"] = str(mission_path)
     return _jsonable(out)
