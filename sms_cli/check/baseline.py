@@ -12,14 +12,15 @@ Which metrics a new baseline holds, and their default tolerances, is the rule ta
 
 from __future__ import annotations
 
-import json
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sms_cli.check.metrics import MetricMissing, as_number, numeric_leaves, resolve
+from sms_cli.check.metrics import MetricMissing, as_number, numeric_leaves, resolve, section
 from sms_cli.errors import InputError, Location, Problem
+from sms_cli.outputs import key_line, kind_of, read_json_file
 
 FORMAT = "sms-baseline/1"
 
@@ -57,29 +58,48 @@ def make_baseline(results: dict[str, Any]) -> dict[str, Any]:
         if tol is None:
             continue
         metrics[path] = {"value": value, "rel_tol": tol[0], "abs_tol": tol[1]}
-    run = results.get("run", {})
-    return {"format": FORMAT, "mission": run.get("mission") or results.get("compile", {}).get("name"),
+    run = section(results, "run")
+    return {"format": FORMAT, "mission": run.get("mission") or section(results, "compile").get("name"),
             "mission_sha256": run.get("mission_sha256"), "metrics": metrics}
 
 
+REGENERATE = "regenerate it from good results: sms check RESULTS --write-baseline FILE"
+
+
+def _number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _metric_problem(m: Any) -> str:
+    """What is wrong with one stored metric ('' when nothing)."""
+    if not isinstance(m, dict):
+        return f"is {kind_of(m)}, not {{\"value\": v, \"rel_tol\": r, \"abs_tol\": a}}"
+    if "value" not in m:
+        return "has no \"value\""
+    if not (_number(m["value"]) or isinstance(m["value"], bool)):
+        return f"value is {kind_of(m['value'])} ({m['value']!r}), not a finite number or a flag"
+    for k in ("rel_tol", "abs_tol"):
+        if k in m and not (_number(m[k]) and m[k] >= 0):
+            return f"{k} is {m[k]!r}: a tolerance is a number >= 0"
+    return ""
+
+
 def read_baseline(path: Path) -> dict[str, Any]:
-    """Load and validate a baseline file (InputError naming the file on any problem)."""
+    """Load and validate a baseline file (InputError naming the file, the line and the fix)."""
     if not path.exists():
         raise InputError(problems=[Problem(f"no such baseline file {path}", Location(path),
                                            hint="write one with: sms check RESULTS --write-baseline FILE")])
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(problems=[Problem(f"not JSON: {exc.msg}", Location(path, exc.lineno, exc.colno))]) from None
+    data, raw = read_json_file(path, "baseline", REGENERATE)
     if not isinstance(data, dict) or data.get("format") != FORMAT or not isinstance(data.get("metrics"), dict):
-        raise InputError(problems=[Problem(f"not an sms baseline (expected \"format\": \"{FORMAT}\" and a "
-                                           "\"metrics\" mapping)", Location(path))])
+        what = f"is {kind_of(data)}" if not isinstance(data, dict) else "has no \"metrics\" mapping" if data.get(
+            "format") == FORMAT else f"has \"format\": {data.get('format')!r}"
+        raise InputError(problems=[Problem(f"not an sms baseline: it {what} (expected \"format\": \"{FORMAT}\" "
+                                           "and a \"metrics\" mapping)", Location(path, 1), hint=REGENERATE)])
     for name, m in data["metrics"].items():
-        ok = isinstance(m, dict) and "value" in m and all(
-            isinstance(m.get(k, 0.0), (int, float)) and m.get(k, 0.0) >= 0 for k in ("rel_tol", "abs_tol"))
-        if not ok:
-            raise InputError(problems=[Problem("each metric is {\"value\": v, \"rel_tol\": r >= 0, \"abs_tol\": a >= 0}",
-                                               Location(path), f"metrics.{name}")])
+        wrong = _metric_problem(m)
+        if wrong:
+            raise InputError(problems=[Problem(wrong, Location(path, key_line(raw, name)), f"metrics.{name}",
+                                               hint="correct it, or " + REGENERATE)])
     return data
 
 

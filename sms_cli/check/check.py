@@ -8,7 +8,6 @@ invalid.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,34 +15,57 @@ from typing import Any
 from pydantic import ValidationError
 
 from sms_cli.check.baseline import Drift, compare, format_drifts, make_baseline, read_baseline
+from sms_cli.check.metrics import damaged_sections, section
 from sms_cli.check.requirements import Verdict, evaluate_all, format_verdicts
 from sms_cli.check.schema import RequirementSpec
 from sms_cli.errors import EXIT_OK, EXIT_REQUIREMENTS, InputError, Location, Problem
+from sms_cli.outputs import key_line, kind_of, read_json_file
 from sms_cli.results import RESULTS_FILE, write_json_atomic
 
 
-def read_results(folder: Path) -> dict[str, Any]:
-    """results.json of a results folder (InputError when absent or unreadable)."""
+def _rerun(folder: Path) -> str:
+    return f"re-run the mission into it: sms run MISSION.yaml -o {folder}"
+
+
+def load_results(folder: Path) -> tuple[dict[str, Any], bytes, Path]:
+    """(results, raw bytes, file) of a results folder or of its results.json; InputError naming the
+    file and line when it is absent, damaged or not a mapping of sections."""
     f = folder / RESULTS_FILE if folder.is_dir() else folder
     if not f.exists():
         raise InputError(problems=[Problem(f"no {RESULTS_FILE} in {folder}", Location(folder),
                                            hint="run the mission first: sms run MISSION.yaml -o " + str(folder))])
-    try:
-        return json.loads(f.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(problems=[Problem(f"not JSON: {exc.msg}", Location(f, exc.lineno, exc.colno))]) from None
+    data, raw = read_json_file(f, "results file", _rerun(f.parent))
+    if not isinstance(data, dict):
+        raise InputError(problems=[Problem(f"is {kind_of(data)}, not the results of a run (a mapping of stage sections)",
+                                           Location(f, 1), hint=_rerun(f.parent))])
+    return data, raw, f
 
 
-def stored_requirements(results: dict[str, Any]) -> list[RequirementSpec] | None:
+def read_results(folder: Path) -> tuple[dict[str, Any], Path]:
+    """(results, file) of a results folder, every section readable (InputError otherwise)."""
+    results, raw, f = load_results(folder)
+    damaged = damaged_sections(results)
+    if damaged:
+        probs = [Problem(what, Location(f, key_line(raw, name))) for name, what in damaged.items()]
+        probs[-1].hint = _rerun(f.parent)
+        raise InputError(f"{f} is damaged", problems=probs)
+    return results, f
+
+
+def stored_requirements(results: dict[str, Any], where: Path) -> list[RequirementSpec] | None:
     """The requirement specs ``sms run`` copied into results.json (None when there are none)."""
-    specs = results.get("requirements", {}).get("specs")
+    specs = section(results, "requirements").get("specs")
     if specs is None:
         return None
+    hint = "pass --mission MISSION.yaml to read them from the mission file, or " + _rerun(where.parent)
+    if not isinstance(specs, list):
+        raise InputError(problems=[Problem(f"requirements.specs is {kind_of(specs)}, not a list", Location(where),
+                                           hint=hint)])
     try:
         return [RequirementSpec.model_validate(s) for s in specs]
     except ValidationError as exc:
-        raise InputError(f"results.json: stored requirements are invalid ({exc.error_count()} problems); "
-                         "pass --mission to read them from the mission file") from None
+        raise InputError(problems=[Problem(f"the stored requirements are invalid ({exc.error_count()} problems)",
+                                           Location(where), "requirements.specs", hint)]) from None
 
 
 @dataclass
@@ -72,8 +94,8 @@ class CheckOutcome:
 def run_check(results_dir: Path, mission: Path | None = None, baseline: Path | None = None,
               junit: Path | None = None, write_baseline: Path | None = None) -> CheckOutcome:
     """Evaluate requirements and/or a baseline; write JUnit / a new baseline when asked."""
-    results = read_results(results_dir)
-    name = results.get("run", {}).get("mission") or results.get("compile", {}).get("name") or Path(results_dir).name
+    results, results_file = read_results(results_dir)
+    name = str(section(results, "run").get("mission") or section(results, "compile").get("name") or Path(results_dir).name)
     outcome = CheckOutcome(name)
     reqs: list[RequirementSpec] | None
     if mission is not None:
@@ -85,7 +107,7 @@ def run_check(results_dir: Path, mission: Path | None = None, baseline: Path | N
         if not reqs:
             outcome.notes.append(f"note: {mission} has no requirements")
     else:
-        reqs = stored_requirements(results)
+        reqs = stored_requirements(results, results_file)
     if write_baseline is not None:
         data = make_baseline(results)
         write_json_atomic(write_baseline, data)

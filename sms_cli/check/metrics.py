@@ -12,11 +12,24 @@ import math
 import re
 from typing import Any, Iterator
 
+from sms_cli.outputs import kind_of
+
 _TOKEN = re.compile(r"([^.\[\]]+)|\[([^\]]*)\]")
 
 
 class MetricMissing(LookupError):
     """The path does not lead to a value; the message says where it stops and what exists there."""
+
+
+def section(results: dict[str, Any], name: str) -> dict[str, Any]:
+    """A section of results.json, or {} when it is absent or damaged (not a mapping)."""
+    value = results.get(name)
+    return value if isinstance(value, dict) else {}
+
+
+def damaged_sections(results: dict[str, Any]) -> dict[str, str]:
+    """Section → what is wrong with it, for every section that is not a mapping (each stage writes one)."""
+    return {k: f"section '{k}' is {kind_of(v)}, not a mapping" for k, v in results.items() if not isinstance(v, dict)}
 
 
 def split_path(path: str) -> list[str | int]:

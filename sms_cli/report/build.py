@@ -1,6 +1,7 @@
 """``sms report``: one self-contained HTML file from a results folder (plots embedded as PNG).
 
-Only sections whose data exist appear. The bytes depend only on the results folder (and the
+Only sections whose data exist appear; a section that cannot be read (damaged results.json) is
+left out and named at the top of the report. The bytes depend only on the results folder (and the
 mission file, for the robot drawing when ``robot.png`` is absent): no wall-clock time, no
 external resources, no scripts.
 """
@@ -8,13 +9,15 @@ external resources, no scripts.
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, TypeVar
 
+from sms_cli.check.metrics import damaged_sections, section
 from sms_cli.errors import InputError, Location, Problem
 from sms_cli.report.model import Figure, Section, png_uri
-from sms_cli.results import RESULTS_FILE, write_text_atomic
+from sms_cli.results import write_text_atomic
+
+T = TypeVar("T")
 
 TEMPLATE = "report.html.j2"
 
@@ -23,7 +26,7 @@ def _robot_png(folder: Path, results: dict[str, Any], mission: Path | None) -> b
     f = folder / "robot.png"
     if f.is_file():
         return f.read_bytes()
-    path = mission or Path(results.get("compile", {}).get("mission_file") or results.get("run", {}).get("mission_file") or "")
+    path = mission or Path(str(section(results, "compile").get("mission_file") or section(results, "run").get("mission_file") or ""))
     if not str(path) or not Path(path).is_file():
         return None
     from sms_cli.mission.load import load_mission
@@ -36,10 +39,12 @@ def _robot_png(folder: Path, results: dict[str, Any], mission: Path | None) -> b
     return draw_robot(compile_system(loaded))
 
 
-def _simulation_figures(folder: Path, sim: dict[str, Any], wheels: list[dict]) -> list[Figure]:
+def _simulation_figures(folder: Path, sim: dict[str, Any], wheels: list[dict]) -> tuple[list[Figure], list[str]]:
+    """The report-only plots of the recording, and notes on what could not be read."""
     from sms_cli.report import figures as F
 
     out: list[Figure] = []
+    notes: list[str] = []
     png = F.wheel_momentum_png(folder / sim.get("files", {}).get("csv", "simulation.csv"), wheels)
     if png:
         out.append(Figure("Reaction-wheel momentum per wheel and of the array (N m s); capacities in the legend.",
@@ -50,20 +55,25 @@ def _simulation_figures(folder: Path, sim: dict[str, Any], wheels: list[dict]) -
     if mcap.is_file():
         try:
             topics = F.read_topics(mcap, ["/joints/position", "/joints/reference", "/ee/position", "/base/position"])
-        except Exception as exc:  # noqa: BLE001 - a damaged recording must not stop the report
+        except Exception:  # noqa: BLE001 - a damaged recording must not stop the report
             topics = {}
-            out.append(Figure(f"(the recording {mcap.name} could not be read: {type(exc).__name__})", "", ""))
+            notes.append(f"the recording {mcap} could not be read (damaged or truncated), so its plots are left out; "
+                         f"sms inspect {mcap} shows what it holds")
         for fn, cap in ((F.joint_tracking_png, "Joint positions against their references (rad for revolute, m for prismatic)."),
                         (F.ee_path_png, "End-effector and base-origin paths in the world frame (equal axes, m).")):
             png = fn(topics)
             if png:
                 out.append(Figure(cap, png_uri(png), cap))
-    return [f for f in out if f.src]
+    return out, notes
 
 
-def _verdict(results: dict[str, Any], verdicts: list[dict]) -> tuple[str, str]:
-    stages = results.get("run", {}).get("stages", [])
-    failed = [s["name"] for s in stages if s.get("status") in ("failed", "skipped", "interrupted")]
+def _dicts(x: Any) -> list[dict]:
+    """The mappings of a list (anything else: none)."""
+    return [v for v in x if isinstance(v, dict)] if isinstance(x, list) else []
+
+
+def _verdict(run: dict[str, Any], verdicts: list[dict]) -> tuple[str, str]:
+    failed = [str(s.get("name")) for s in _dicts(run.get("stages")) if s.get("status") in ("failed", "skipped", "interrupted")]
     bad = [v for v in verdicts if v["status"] != "pass"]
     if failed:
         return f"stages failed: {', '.join(failed)}" + (f"; {len(bad)} requirement(s) not met" if bad else ""), "fail"
@@ -74,21 +84,32 @@ def _verdict(results: dict[str, Any], verdicts: list[dict]) -> tuple[str, str]:
     return "no requirements defined", "neutral"
 
 
-def collect(folder: Path, mission: Path | None = None) -> dict[str, Any]:
-    """The template context of a results folder."""
+def _why(exc: Exception) -> str:
+    if isinstance(exc, KeyError):
+        return f"it has no '{exc.args[0]}'" if exc.args else "a key is missing"
+    return "a list is shorter than expected" if isinstance(exc, IndexError) else "a value has the wrong type"
+
+
+def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | None = None) -> dict[str, Any]:
+    """The template context of a results folder; what cannot be read is appended to ``unreadable``."""
+    from sms_cli.check.check import load_results
     from sms_cli.report import sections as S
 
-    f = folder / RESULTS_FILE
-    if not f.is_file():
-        raise InputError(problems=[Problem(f"no {RESULTS_FILE} in {folder}", Location(folder),
-                                           hint="run the mission first: sms run MISSION.yaml -o " + str(folder))])
-    raw = f.read_bytes()
-    try:
-        results = json.loads(raw)
-    except json.JSONDecodeError as exc:
-        raise InputError(problems=[Problem(f"not JSON: {exc.msg}", Location(f, exc.lineno, exc.colno))]) from None
-    run = results.get("run", {})
-    verdicts = list(results.get("requirements", {}).get("verdicts", []))
+    if folder.is_file():
+        raise InputError(problems=[Problem("is a file; sms report takes the results folder (the one holding results.json)",
+                                           Location(folder), hint=f"sms report {folder.parent}")])
+    results, raw, _ = load_results(folder)
+    problems = list(damaged_sections(results).values())
+
+    def attempt(name: str, build: Callable[[], T]) -> T | None:
+        try:
+            return build()
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            problems.append(f"section '{name}' is incomplete ({_why(exc)})")
+            return None
+
+    run = section(results, "run")
+    verdicts = [v for v in _dicts(section(results, "requirements").get("verdicts")) if isinstance(v.get("status"), str)]
     if mission is not None:
         from sms_cli.check.requirements import evaluate_all
         from sms_cli.mission.load import load_mission
@@ -101,30 +122,40 @@ def collect(folder: Path, mission: Path | None = None) -> dict[str, Any]:
             run = {"mission": loaded.mission.name, "mission_file": str(loaded.path),
                    "description": loaded.mission.description.strip(),
                    "files": {"mission": {"path": str(loaded.path), "sha256": sha256_file(loaded.path)}}}
-    name = run.get("mission") or results.get("compile", {}).get("name") or folder.name
-    sections: list[Section] = []
-    stage_rows = [[s["name"], s["status"], f"{s['seconds']:.2f}" if s.get("seconds") else "—",
-                   (s.get("message") or "").split("\n")[0][:160]] for s in run.get("stages", [])]
-    if "compile" in results:
-        sections.append(S.model_section(results["compile"], folder, _robot_png(folder, results, mission)))
-    if "budget" in results:
-        sections.append(S.budget_section(results["budget"], folder))
-    if "analysis" in results:
-        sections.append(S.analysis_section(results["analysis"], folder))
-    if "synthesis" in results:
-        sections.append(S.synthesis_section(results["synthesis"], folder))
-    if "simulate" in results:
-        wheels = results.get("compile", {}).get("wheels", [])
-        sections.append(S.simulation_section(results["simulate"], folder, wheels,
-                                             _simulation_figures(folder, results["simulate"], wheels)))
+    name = str(run.get("mission") or section(results, "compile").get("name") or folder.name)
+    stage_rows = attempt("run", lambda: [[str(s["name"]), str(s["status"]), f"{s['seconds']:.2f}" if s.get("seconds") else "—",
+                                          str(s.get("message") or "").split("\n")[0][:160]] for s in _dicts(run.get("stages"))]) or []
+    sections: list[Section | None] = []
+    if isinstance(results.get("compile"), dict):
+        sections.append(attempt("compile", lambda: S.model_section(results["compile"], folder, _robot_png(folder, results, mission))))
+    for key, build in (("budget", S.budget_section), ("analysis", S.analysis_section), ("synthesis", S.synthesis_section)):
+        if isinstance(results.get(key), dict):
+            sections.append(attempt(key, lambda: build(results[key], folder)))
+    if isinstance(results.get("simulate"), dict):
+        sim = results["simulate"]
+        wheels = _dicts(section(results, "compile").get("wheels"))
+        figures, notes = attempt("simulate", lambda: _simulation_figures(folder, sim, wheels)) or ([], [])
+        sec = attempt("simulate", lambda: S.simulation_section(sim, folder, wheels, figures))
+        if sec is not None:
+            sec.notes.extend(notes)
+        sections.append(sec)
     if verdicts:
-        sections.append(S.requirements_section(verdicts))
+        sections.append(attempt("requirements", lambda: S.requirements_section(verdicts)))
     if run:
-        sections.append(S.provenance_section(run, hashlib.sha256(raw).hexdigest()))
-    text, cls = _verdict(results, verdicts)
-    return {"mission": name, "description": run.get("description", ""), "date": run.get("date", ""),
-            "verdict": text, "verdict_class": cls, "stage_rows": stage_rows, "sections": sections,
-            "n_figures": sum(len(s.figures) for s in sections)}
+        sections.append(attempt("run", lambda: S.provenance_section(run, hashlib.sha256(raw).hexdigest())))
+    text, cls = attempt("run", lambda: _verdict(run, verdicts)) or ("", "neutral")
+    shown = [s for s in sections if s is not None]
+    if problems:
+        shown.insert(0, Section("unreadable", "Results that could not be read",
+                                intro="results.json is damaged: these parts of it are left out of this report.",
+                                notes=problems))
+        text = "; ".join(t for t in (text, f"{len(problems)} part(s) of results.json unreadable") if t)
+        cls = "fail"
+    if unreadable is not None:
+        unreadable.extend(problems)
+    return {"mission": name, "description": str(run.get("description", "")), "date": str(run.get("date", "")),
+            "verdict": text, "verdict_class": cls, "stage_rows": stage_rows, "sections": shown,
+            "n_figures": sum(len(s.figures) for s in shown)}
 
 
 def render(context: dict[str, Any]) -> str:
@@ -135,9 +166,11 @@ def render(context: dict[str, Any]) -> str:
     return env.get_template(TEMPLATE).render(**context)
 
 
-def write_report(folder: Path, target: Path | None = None, mission: Path | None = None) -> Path:
-    """Render the report of a results folder into ``target`` (default: ``<folder>/report.html``), atomically."""
+def write_report(folder: Path, target: Path | None = None, mission: Path | None = None,
+                 unreadable: list[str] | None = None) -> Path:
+    """Render the report of a results folder into ``target`` (default: ``<folder>/report.html``), atomically;
+    what could not be read is appended to ``unreadable``."""
     folder = Path(folder)
     target = Path(target) if target is not None else folder / "report.html"
-    html = render(collect(folder, mission))
+    html = render(collect(folder, mission, unreadable))
     return write_text_atomic(target, html)
