@@ -7,9 +7,11 @@ that ``sms --help`` and ``sms --version`` answer at once.
 from __future__ import annotations
 
 import json
+import re
 import sys
+import warnings
 from pathlib import Path
-from typing import Annotated, Callable, Optional
+from typing import Annotated, Callable, Optional, Sequence
 
 import typer
 
@@ -20,10 +22,11 @@ from sms_cli.errors import (
     EXIT_NUMERICAL,
     SmsError,
 )
+from sms_cli.outputs import Output, from_os_error
 
 EXIT_CODES_HELP = (
     "Exit codes: 0 ok · 1 requirements not met · 2 invalid input or usage · "
-    "3 numerical failure (infeasible synthesis, diverged simulation, singular model) · "
+    "3 numerical failure (infeasible synthesis, diverged simulation, singular model) or the disk is full · "
     "4 internal error (a bug: please report it) · 130 interrupted."
 )
 EXIT_INTERNAL = 4
@@ -65,28 +68,62 @@ def err(text: str) -> None:
     typer.echo(text, err=True)
 
 
-def run_guarded(fn: Callable[[], int | None]) -> None:
-    """Run a command body; map every failure to a message and an exit code (no traceback)."""
+#: RuntimeWarnings of floating-point arithmetic (NaN or inf reach the results as null): not shown
+_NUMERIC_WARNING = re.compile(r"invalid value|divide by zero|overflow|underflow|empty slice|degrees of freedom", re.I)
+
+
+def _plain_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` for users: one plain line, no source path; numeric ones silenced."""
+    text = str(message).strip()
+    if issubclass(category, RuntimeWarning) and _NUMERIC_WARNING.search(text):
+        return
+    if text:
+        err("warning: " + text.splitlines()[0][:300])
+
+
+def _guarded(fn: Callable[[], int | None], outputs: Sequence[Output]) -> int:
     try:
-        code = fn() or 0
+        for o in outputs:
+            o.check()
+        return fn() or 0
     except SmsError as exc:
         if _state["debug"]:
             raise
         err(f"error: {exc.render()}")
-        code = exc.exit_code
+        return exc.exit_code
     except KeyboardInterrupt:
         err("interrupted")
-        code = EXIT_INTERRUPTED
+        return EXIT_INTERRUPTED
     except typer.Exit:
         raise
     except Exception as exc:  # noqa: BLE001 - the contract is: never a raw traceback
         if _state["debug"]:
             raise
-        numeric = type(exc).__name__ in {"LinAlgError", "FloatingPointError"}
-        kind = "numerical failure" if numeric else "internal error (a bug in sms; please report it, run with --debug for the traceback)"
-        err(f"error: {kind}: {type(exc).__name__}: {exc}")
-        code = EXIT_NUMERICAL if numeric else EXIT_INTERNAL
+        mapped = from_os_error(exc, outputs) if isinstance(exc, OSError) else None
+        if mapped is not None:
+            err(f"error: {mapped.render()}")
+            return mapped.exit_code
+        if type(exc).__name__ in {"LinAlgError", "FloatingPointError"}:
+            err(f"error: numerical failure: {exc}\n    fix: look for an extreme or degenerate value in the mission or "
+                "the URDF (a zero mass, an inertia off by orders of magnitude); --debug shows where it happened")
+            return EXIT_NUMERICAL
+        err("error: internal error (a bug in sms; please report it, run with --debug for the traceback): "
+            f"{type(exc).__name__}: {exc}")
+        return EXIT_INTERNAL
+
+
+def run_guarded(fn: Callable[[], int | None], outputs: Sequence[Output] = ()) -> None:
+    """Check the paths the command will write, run its body, map every failure to a message and
+    an exit code (no traceback; warnings as one plain line unless --debug)."""
+    with warnings.catch_warnings():
+        if not _state["debug"]:
+            warnings.showwarning = _plain_warning
+        code = _guarded(fn, outputs)
     raise typer.Exit(code)
+
+
+def _results_folder(path: Path) -> list[Output]:
+    return [Output(path, "results folder", folder=True)]
 
 
 def emit(data, as_json: bool, formatter: Callable[[dict], str]) -> None:
@@ -127,7 +164,7 @@ def compile_cmd(
         typer.echo(json.dumps(summary, indent=2) if as_json else format_summary(summary))
         return 0
 
-    run_guarded(body)
+    run_guarded(body, _results_folder(default_out(mission, out)) if write else ())
 
 
 @app.command("budget")
@@ -146,7 +183,7 @@ def budget_cmd(
         emit(data, as_json, format_budget)
         return 0
 
-    run_guarded(body)
+    run_guarded(body, _results_folder(default_out(mission, out)))
 
 
 @app.command("analyze")
@@ -167,7 +204,7 @@ def analyze_cmd(
         emit(data, as_json, format_analysis)
         return 0
 
-    run_guarded(body)
+    run_guarded(body, _results_folder(default_out(mission, out)))
 
 
 @app.command("synthesize")
@@ -187,7 +224,7 @@ def synthesize_cmd(
         emit(section, as_json, format_synthesis)
         return 0
 
-    run_guarded(body)
+    run_guarded(body, _results_folder(default_out(mission, out)))
 
 
 @app.command("simulate")
@@ -203,18 +240,20 @@ def simulate_cmd(
 ) -> None:
     """Nonlinear simulation of the mission's phases; records simulation.mcap (Foxglove) and metrics."""
 
+    mcap_path = out if out is not None and out.suffix == ".mcap" else None
+    folder = default_out(mission, None if mcap_path else out)
+
     def body() -> int:
         from sms_cli.mission.load import load_mission
         from sms_cli.sim.report import format_simulation
         from sms_cli.sim.stage import run_simulation
 
-        mcap_path = out if out is not None and out.suffix == ".mcap" else None
-        folder = default_out(mission, None if mcap_path else out)
         section = run_simulation(load_mission(mission), folder, mcap_path, progress)
         emit(section, as_json, format_simulation)
         return 0
 
-    run_guarded(body)
+    run_guarded(body, _results_folder(folder) + ([Output(mcap_path, "recording", example="simulation.mcap")]
+                                                 if mcap_path else []))
 
 
 @app.command("run")
@@ -235,7 +274,7 @@ def run_cmd(
         typer.echo(format_run(summary), nl=False)
         return summary.exit_code
 
-    run_guarded(body)
+    run_guarded(body, _results_folder(default_out(mission, out)))
 
 
 @app.command("report")
@@ -245,20 +284,34 @@ def report_cmd(
     mission: Annotated[Optional[Path], typer.Option("--mission", "-m", help="mission file: re-evaluate its requirements")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="also print a PDF next to the HTML (needs chromium)")] = False,
 ) -> None:
-    """One self-contained HTML report (plots embedded) of a results folder; optional PDF."""
+    """One self-contained HTML report (plots embedded) of a results folder; optional PDF.
+
+    Sections of results.json that cannot be read are left out and named (exit 2)."""
+    target = output if output is not None else results / "report.html"
+    outputs = [Output(target, "report", example="report.html")] if output is not None or results.is_dir() else []
+    if pdf and outputs:
+        outputs.append(Output(target.with_suffix(".pdf"), "PDF", example="report.pdf"))
 
     def body() -> int:
         from sms_cli.report.build import write_report
 
-        path = write_report(results, output, mission)
+        unreadable: list[str] = []
+        path = write_report(results, output, mission, unreadable)
         typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.2f} MB)")
         if pdf:
             from sms_cli.report.pdf import print_pdf
 
             typer.echo(f"pdf: {print_pdf(path)}")
+        if unreadable:
+            from sms_cli.errors import InputError, Location, Problem
+
+            raise InputError(problems=[Problem(
+                "the report leaves out what could not be read: " + "; ".join(unreadable),
+                Location(results / "results.json" if results.is_dir() else results),
+                hint=f"re-run the mission into this folder: sms run MISSION.yaml -o {results}")])
         return 0
 
-    run_guarded(body)
+    run_guarded(body, outputs)
 
 
 @app.command("check")
@@ -279,7 +332,8 @@ def check_cmd(
         typer.echo(outcome.format(), nl=False)
         return outcome.exit_code
 
-    run_guarded(body)
+    run_guarded(body, ([Output(junit, "JUnit report", example="junit.xml")] if junit else [])
+                + ([Output(write_baseline, "baseline", example="baseline.json")] if write_baseline else []))
 
 
 @app.command("schema")
@@ -300,7 +354,7 @@ def schema_cmd(
             typer.echo(text)
         return 0
 
-    run_guarded(body)
+    run_guarded(body, [Output(output, "schema", example="mission.schema.json")] if output else [])
 
 
 @app.command("inspect")
