@@ -361,12 +361,19 @@ def schema_cmd(
 def inspect_cmd(
     recording: Annotated[Path, typer.Argument(help="MCAP recording written by `sms simulate`", show_default=False)],
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
+    repair: Annotated[bool, typer.Option("--repair", help="rewrite what can be read of a killed, truncated or damaged "
+                                                          "recording into a complete file (in place, atomically)")] = False,
 ) -> None:
-    """Summarise a simulation recording (MCAP): topics, schemas, message counts, time span, rates, metadata, run status."""
+    """Summarise a simulation recording (MCAP): topics, schemas, message counts, time span, rates, metadata, run status.
+
+    A damaged or unfinished recording is exit 2, saying what can still be read; --repair rewrites that part
+    into a complete file."""
 
     def body() -> int:
-        from sms_cli.sim.inspect import format_inspection, inspect_recording
+        from sms_cli.sim.inspect import format_inspection, format_repair, inspect_recording, repair_recording
 
+        if repair:
+            err(format_repair(repair_recording(recording)))
         info = inspect_recording(recording)
         typer.echo(json.dumps(info, indent=2) if as_json else format_inspection(info))
         return 0
@@ -375,7 +382,10 @@ def inspect_cmd(
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. SIGTERM is handled as Ctrl-C: files are finished, exit 130."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         app()
     except KeyboardInterrupt:  # pragma: no cover - outside a command body

@@ -14,6 +14,16 @@ SummaryOffsets, Footer, magic. Every chunk is flushed to the OS when written, so
 leaves every complete chunk on disk. Times are integer nanoseconds chosen by the caller; nothing
 here reads a clock, so the same calls give the same bytes.
 
+A file that is still being written is a valid MCAP too: every write (a chunk with its indexes, a
+metadata record…) goes over the previous end marker and carries a new one, DataEnd + a Footer
+without summary + magic (``LIVE_END``, 46 bytes), in the same system call. A process killed at any
+point but inside that call leaves a file the ``mcap`` reader and Foxglove open (by a linear scan:
+there is no index); ``finish()`` then writes the summary and index over the last marker, and the
+finished bytes are those of a file written without markers. A failed write (a full disk) is
+undone: the file is cut back to the last whole record and its end marker rewritten, the error is
+kept in ``failed`` and raised again by any later chunk write; ``finish()`` still tries to write
+the summary of what is on disk.
+
 Not thread-safe; the caller keeps the object consistent (see ``recorder.McapRecorder`` for the
 deferral of Ctrl-C while a write is in progress).
 """
@@ -89,6 +99,11 @@ def _record_bytes(record: McapRecord) -> bytes:
     return builder.end()
 
 
+#: the end marker of a file being written: DataEnd (no CRC), a Footer saying "no summary", magic
+LIVE_END = _record_bytes(DataEnd(data_section_crc=0)) + _record_bytes(
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0)) + MAGIC
+
+
 class ChunkedMcapWriter:
     """Append-only MCAP writer over a binary stream (a file opened ``'wb'``).
 
@@ -107,8 +122,11 @@ class ChunkedMcapWriter:
         compression_level: int = 1,
         library: str = "sms",
         profile: str = "",
+        live_end: bool = True,
     ) -> None:
         self._f = stream
+        self._end = LIVE_END if live_end and stream.seekable() else b""
+        self.failed: OSError | None = None
         self.chunk_size = int(chunk_size)
         self.compression = compression
         self._compress = _compressor(compression, compression_level)
@@ -131,15 +149,43 @@ class ChunkedMcapWriter:
         self._write(_record_bytes(Header(profile=profile, library=library)))
 
     # -- low level -------------------------------------------------------------------------
-    def _write(self, data: bytes | bytearray) -> None:
-        self._f.write(data)
+    def _write(self, data: bytes | bytearray, end: bytes | None = None) -> None:
+        """Write ``data`` at the end of the records, followed by the end marker, in one call; on
+        an OSError cut the file back to the last whole record (see the module docstring)."""
+        end = self._end if end is None else end
+        try:
+            if self._end:
+                self._f.seek(self._pos)
+            view = memoryview(bytes(data) + end if end else data)
+            while view:
+                n = self._f.write(view)
+                view = view[len(view) if n is None else n:]
+        except OSError as exc:
+            self.failed = exc
+            self._cut()
+            raise
         self._crc = zlib.crc32(data, self._crc)
         self._pos += len(data)
+
+    def _cut(self) -> None:
+        """Back to the last whole record, with its end marker (best effort: the disk may be full)."""
+        try:
+            self._f.truncate(self._pos)
+            if self._end:
+                self._f.seek(self._pos)
+                self._f.write(self._end)
+        except OSError:
+            pass
 
     @property
     def bytes_written(self) -> int:
         """Bytes written to the stream so far (the open chunk is not counted)."""
         return self._pos
+
+    @property
+    def on_disk(self) -> tuple[int, int | None]:
+        """(messages, last log time in ns or None) of the chunks written so far."""
+        return self._message_count, (self._t_end if self._chunk_indexes else None)
 
     @property
     def message_count(self) -> int:
@@ -203,6 +249,8 @@ class ChunkedMcapWriter:
 
     def flush_chunk(self) -> None:
         """Compress and write the open chunk and its message indexes (no-op when it holds no message)."""
+        if self.failed is not None:
+            raise self.failed
         live = [(cid, lst) for cid, lst in self._index.items() if lst]
         if not live:
             return
@@ -231,11 +279,11 @@ class ChunkedMcapWriter:
             offsets[cid] = at
             at += len(record)
             parts.append(record)
-            self._counts[cid] = self._counts.get(cid, 0) + n // 2
-            self._message_count += n // 2
-        index_bytes = b"".join(parts)
-        self._write(chunk_bytes)
-        self._write(index_bytes)
+        self._write(chunk_bytes + b"".join(parts))
+        index_bytes_len = at - index_start
+        for cid, lst in live:
+            self._counts[cid] = self._counts.get(cid, 0) + len(lst) // 2
+            self._message_count += len(lst) // 2
         self._chunk_indexes.append(
             ChunkIndex(
                 chunk_length=len(chunk_bytes),
@@ -243,7 +291,7 @@ class ChunkedMcapWriter:
                 compression=self.compression,
                 compressed_size=len(compressed),
                 message_end_time=t1,
-                message_index_length=len(index_bytes),
+                message_index_length=index_bytes_len,
                 message_index_offsets=offsets,
                 message_start_time=t0,
                 uncompressed_size=len(raw),
@@ -285,13 +333,15 @@ class ChunkedMcapWriter:
         """Write the last chunk, DataEnd, the summary section, footer and closing magic."""
         if self.finished:
             return
-        self.flush_chunk()
-        if self._chunk:  # schema/channel records registered but no message: keep them readable
-            self._write(bytes(self._chunk))
-            self._chunk.clear()
-        self._write(_record_bytes(DataEnd(data_section_crc=self._crc)))
-
-        summary_start = self._pos
+        if self.failed is None:
+            self.flush_chunk()
+            if self._chunk:  # schema/channel records registered but no message: keep them readable
+                self._write(bytes(self._chunk))
+        self._chunk.clear()  # after a failed write: what could not be written is lost
+        for lst in self._index.values():
+            lst.clear()
+        data_end = _record_bytes(DataEnd(data_section_crc=self._crc))
+        summary_start = self._pos + len(data_end)
         summary = bytearray()
         groups: list[SummaryOffset] = []
 
@@ -325,11 +375,12 @@ class ChunkedMcapWriter:
             summary.extend(_record_bytes(offset))
         summary_crc = zlib.crc32(bytes(summary))
         summary_crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, summary_offset_start), summary_crc)
-        self._write(bytes(summary))
-        self._write(_record_bytes(Footer(summary_start=summary_start, summary_offset_start=summary_offset_start, summary_crc=summary_crc)))
-        self._write(MAGIC)
+        footer = _record_bytes(Footer(summary_start=summary_start, summary_offset_start=summary_offset_start, summary_crc=summary_crc))
+        self._write(data_end + bytes(summary) + footer + MAGIC, end=b"")
+        if self._end:
+            self._f.truncate()
         self._f.flush()
         self.finished = True
 
 
-__all__ = ["ChunkedMcapWriter", "available_compression", "MESSAGE_HEADER", "MESSAGE_FIXED", "MAGIC"]
+__all__ = ["ChunkedMcapWriter", "available_compression", "MESSAGE_HEADER", "MESSAGE_FIXED", "MAGIC", "LIVE_END"]
