@@ -134,6 +134,43 @@ def test_report_notes_a_damaged_recording(results):
     assert not EXC_NAME.search(html.split("<body>")[1])
 
 
+def test_report_notes_damaged_artifacts_and_a_mission_that_no_longer_loads(results, tmp_path):
+    """A damaged CSV or gains.yaml, or a stored mission path that no longer loads, costs a table
+    or a plot with a note; the report is still written (exit 0: results.json itself is intact)."""
+    broken = tmp_path / "gone.yaml"
+    broken.write_text("name: [unclosed\n")
+    wheel = {"name": "rw1", "spin_inertia_kgm2": 0.1, "axis_base": [1, 0, 0], "max_speed_rad_s": 600.0,
+             "max_torque_Nm": 0.2}
+
+    def damage(d):
+        d["compile"] = {"name": "leo", "mission_file": str(broken), "wheels": [wheel]}
+        d["simulate"] = {"status": "ok", "files": {"csv": "simulation.csv"}}
+        d["synthesis"] = {"law": "pd"}
+
+    _edit(results, damage)
+    (results / "simulation.csv").write_text("t_s,wheel_speed_rw1\nabc,def\n")
+    (results / "gains.yaml").write_text("- 1\n- 2\n")
+    r = run_cli("report", results)
+    assert_clean(r, 0)
+    html = (results / "report.html").read_text()
+    assert "the robot drawing is left out: " + str(broken) in html
+    assert "the wheel-momentum plot is left out" in html and "gains.yaml could not be read" in html
+    assert not EXC_NAME.search(html.split("<body>")[1])
+
+
+def test_pdf_that_times_out_is_an_error_not_a_crash(results, monkeypatch):
+    import subprocess
+
+    def slow(cmd, **kw):
+        raise subprocess.TimeoutExpired(cmd, kw.get("timeout"))
+
+    monkeypatch.setattr("sms_cli.report.pdf.find_browser", lambda: "/usr/bin/chromium")
+    monkeypatch.setattr("sms_cli.report.pdf.subprocess.run", slow)
+    r = run_cli("report", results, "--pdf")
+    assert_clean(r, 2, results / "report.html", "did not finish printing", "fix:")
+    assert not (results / "report.pdf").exists() and not list(results.glob(".*.part"))
+
+
 def test_report_of_intact_results_has_no_unreadable_part(results):
     r = run_cli("report", results)
     assert_clean(r, 0)

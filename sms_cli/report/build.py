@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 from sms_cli.check.metrics import damaged_sections, section
-from sms_cli.errors import InputError, Location, Problem
+from sms_cli.errors import InputError, Location, Problem, SmsError
 from sms_cli.report.model import Figure, Section, png_uri
 from sms_cli.results import write_text_atomic
 
@@ -39,31 +39,50 @@ def _robot_png(folder: Path, results: dict[str, Any], mission: Path | None) -> b
     return draw_robot(compile_system(loaded))
 
 
+def _robot_drawing(folder: Path, results: dict[str, Any], mission: Path | None) -> tuple[bytes | None, str]:
+    """The drawing and, when the mission file results.json names no longer loads, a note instead
+    (an error only for a mission given with --mission)."""
+    try:
+        return _robot_png(folder, results, mission), ""
+    except SmsError as exc:
+        if mission is not None:
+            raise
+        return None, "the robot drawing is left out: " + exc.render().splitlines()[0]
+
+
 def _simulation_figures(folder: Path, sim: dict[str, Any], wheels: list[dict]) -> tuple[list[Figure], list[str]]:
-    """The report-only plots of the recording, and notes on what could not be read."""
+    """The report-only plots of the recording and the CSV, and notes on what could not be read."""
+    import csv
+
     from sms_cli.report import figures as F
 
     out: list[Figure] = []
     notes: list[str] = []
-    png = F.wheel_momentum_png(folder / sim.get("files", {}).get("csv", "simulation.csv"), wheels)
+    files = sim.get("files") if isinstance(sim.get("files"), dict) else {}
+    csv_path = folder / str(files.get("csv") or "simulation.csv")
+    try:
+        png = F.wheel_momentum_png(csv_path, wheels)
+    except (csv.Error, ValueError, KeyError, TypeError, IndexError):
+        png = None
+        notes.append(f"the wheel-momentum plot is left out: {csv_path} (or the wheels of the compile section) "
+                     "could not be read")
     if png:
         out.append(Figure("Reaction-wheel momentum per wheel and of the array (N m s); capacities in the legend.",
                           png_uri(png), "wheel momentum"))
-    mcap = Path(sim.get("files", {}).get("mcap") or "simulation.mcap")
+    mcap = Path(str(files.get("mcap") or "simulation.mcap"))
     if not mcap.is_file():
         mcap = folder / mcap.name
     if mcap.is_file():
         try:
             topics = F.read_topics(mcap, ["/joints/position", "/joints/reference", "/ee/position", "/base/position"])
+            for fn, cap in ((F.joint_tracking_png, "Joint positions against their references (rad for revolute, m for prismatic)."),
+                            (F.ee_path_png, "End-effector and base-origin paths in the world frame (equal axes, m).")):
+                png = fn(topics)
+                if png:
+                    out.append(Figure(cap, png_uri(png), cap))
         except Exception:  # noqa: BLE001 - a damaged recording must not stop the report
-            topics = {}
             notes.append(f"the recording {mcap} could not be read (damaged or truncated), so its plots are left out; "
                          f"sms inspect {mcap} shows what it holds")
-        for fn, cap in ((F.joint_tracking_png, "Joint positions against their references (rad for revolute, m for prismatic)."),
-                        (F.ee_path_png, "End-effector and base-origin paths in the world frame (equal axes, m).")):
-            png = fn(topics)
-            if png:
-                out.append(Figure(cap, png_uri(png), cap))
     return out, notes
 
 
@@ -127,7 +146,11 @@ def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | N
                                           str(s.get("message") or "").split("\n")[0][:160]] for s in _dicts(run.get("stages"))]) or []
     sections: list[Section | None] = []
     if isinstance(results.get("compile"), dict):
-        sections.append(attempt("compile", lambda: S.model_section(results["compile"], folder, _robot_png(folder, results, mission))))
+        png, note = _robot_drawing(folder, results, mission)
+        sec = attempt("compile", lambda: S.model_section(results["compile"], folder, png))
+        if sec is not None and note:
+            sec.notes.append(note)
+        sections.append(sec)
     for key, build in (("budget", S.budget_section), ("analysis", S.analysis_section), ("synthesis", S.synthesis_section)):
         if isinstance(results.get(key), dict):
             sections.append(attempt(key, lambda: build(results[key], folder)))

@@ -7,7 +7,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from sms_cli.errors import InputError, Problem
+from sms_cli.errors import InputError, Location, Problem
 from sms_cli.results import atomic_path
 
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
@@ -33,7 +33,13 @@ def print_pdf(html: Path, target: Path | None = None, timeout: float = 120.0) ->
     with tempfile.TemporaryDirectory(prefix="sms-chromium-") as profile, atomic_path(target) as tmp:
         cmd = [browser, *FLAGS, f"--user-data-dir={profile}", "--no-pdf-header-footer",
                f"--print-to-pdf={tmp}", Path(html).resolve().as_uri()]
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise InputError(problems=[Problem(f"chromium did not finish printing the PDF within {timeout:.0f} s",
+                                               Location(html), hint="open the HTML and print it from a browser")]) from None
         if proc.returncode != 0 or tmp.stat().st_size == 0:
-            raise InputError(f"chromium could not print {html} (exit {proc.returncode}): {proc.stderr.strip()[-400:]}")
+            raise InputError(problems=[Problem(f"chromium could not print it (exit {proc.returncode}): "
+                                               f"{proc.stderr.strip()[-400:]}", Location(html),
+                                               hint="open the HTML and print it from a browser")])
     return target

@@ -227,9 +227,11 @@ def synthesis_section(sy: dict[str, Any], folder: Path) -> Section:
 
         try:
             g = yaml.safe_load(gains_file.read_text(encoding="utf-8")) or {}
-        except yaml.YAMLError:
+        except (yaml.YAMLError, UnicodeDecodeError):
+            g = None
+        if not isinstance(g, dict):
             g = {}
-            s.notes.append("gains.yaml could not be read")
+            s.notes.append(f"{gains_file} could not be read (damaged), so the gain tables are left out")
         s.intro = f"law: {g.get('law', sy.get('law', '?'))}" + (f", variant {g['variant']}" if g.get("variant") else "")
         ctl = g.get("controller")
         acts = g.get("actuators", [])
