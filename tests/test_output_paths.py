@@ -18,7 +18,6 @@ import pytest
 from conftest import MISSIONS, run_cli
 
 LEO = MISSIONS / "hipparcos_leo.yaml"
-CALDERA = MISSIONS / "caldera_smallsat.yaml"
 EXC_NAME = re.compile(r"\b[A-Z][A-Za-z]*(Error|Exception|Warning)\b|Traceback|\.py:\d+")
 
 
@@ -42,48 +41,42 @@ def leo_results(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture
-def no_work(monkeypatch):
-    """Loading a mission fails the test: the path check must come first."""
-    def boom(*a, **k):
-        raise AssertionError("work started before the output path was checked")
-
-    monkeypatch.setattr("sms_cli.mission.load.load_mission", boom)
-    monkeypatch.setattr("sms_cli.model.summary.compile_summary", boom)
+#: The output check comes before any work: with a mission that does not exist, the error must
+#: still be the one about the output path (loading the mission would fail with another).
+NO_MISSION = Path("/nonexistent-sms/mission.yaml")
 
 
-MISSION_COMMANDS = [("budget", LEO), ("analyze", LEO), ("synthesize", LEO), ("simulate", LEO), ("run", LEO),
-                    ("compile", CALDERA)]
+MISSION_COMMANDS = ["budget", "analyze", "synthesize", "simulate", "run", "compile"]
 
 
-def _mission_cmd(cmd: str, mission: Path, out: Path) -> list:
-    return [cmd, mission, "-o", out] + (["--write"] if cmd == "compile" else [])
+def _mission_cmd(cmd: str, out: Path) -> list:
+    return [cmd, NO_MISSION, "-o", out] + (["--write"] if cmd == "compile" else [])
 
 
-@pytest.mark.parametrize("cmd,mission", MISSION_COMMANDS)
-def test_results_folder_that_is_a_file(tmp_path, no_work, cmd, mission):
+@pytest.mark.parametrize("cmd", MISSION_COMMANDS)
+def test_results_folder_that_is_a_file(tmp_path, cmd):
     f = tmp_path / "afile"
     f.write_text("keep me\n")
-    r = run_cli(*_mission_cmd(cmd, mission, f))
+    r = run_cli(*_mission_cmd(cmd, f))
     assert_clean(r, 2, f, "is a file", "fix:")
     assert f.read_text() == "keep me\n" and not stray(tmp_path)
 
 
-@pytest.mark.parametrize("cmd,mission", MISSION_COMMANDS)
-def test_results_folder_under_a_file(tmp_path, no_work, cmd, mission):
+@pytest.mark.parametrize("cmd", MISSION_COMMANDS)
+def test_results_folder_under_a_file(tmp_path, cmd):
     """A folder that cannot be created: its parent is a regular file."""
     f = tmp_path / "afile"
     f.write_text("x")
-    r = run_cli(*_mission_cmd(cmd, mission, f / "out"))
+    r = run_cli(*_mission_cmd(cmd, f / "out"))
     assert_clean(r, 2, f / "out", f"{f} is a file, not a folder", "fix:")
     assert not stray(tmp_path)
 
 
 @pytest.mark.skipif(not Path("/sys/kernel").is_dir(), reason="needs sysfs")
-def test_results_folder_in_a_folder_root_cannot_write(no_work):
+def test_results_folder_in_a_folder_root_cannot_write():
     """/sys refuses new files even to root: the honest read-only folder of a root test run."""
     assert not os.path.exists("/sys/sms-out")
-    r = run_cli("budget", LEO, "-o", "/sys/sms-out")
+    r = run_cli("budget", NO_MISSION, "-o", "/sys/sms-out")
     assert_clean(r, 2, "/sys/sms-out", "you may not write in /sys", "fix:")
 
 
@@ -97,21 +90,21 @@ def test_output_file_in_a_folder_root_cannot_write(leo_results, args):
     assert "PASS" not in r.output and not stray(leo_results)  # refused before the check ran
 
 
-def test_read_only_file_system(tmp_path, monkeypatch, no_work):
+def test_read_only_file_system(tmp_path, monkeypatch):
     """A read-only mount, simulated: the probe file cannot be created (EROFS)."""
     def erofs(*a, **k):
         raise OSError(errno.EROFS, "Read-only file system")
 
     monkeypatch.setattr("sms_cli.outputs.tempfile.mkstemp", erofs)
-    r = run_cli("budget", LEO, "-o", tmp_path / "out")
+    r = run_cli("budget", NO_MISSION, "-o", tmp_path / "out")
     assert_clean(r, 2, tmp_path / "out", "read-only file system")
     assert not (tmp_path / "out").exists()
 
 
-def test_simulate_recording_under_a_file(tmp_path, no_work):
+def test_simulate_recording_under_a_file(tmp_path):
     f = tmp_path / "afile"
     f.write_text("x")
-    r = run_cli("simulate", LEO, "-o", f / "run.mcap")
+    r = run_cli("simulate", NO_MISSION, "-o", f / "run.mcap")
     assert_clean(r, 2, f / "run.mcap", "is a file, not a folder")
 
 
@@ -187,12 +180,12 @@ def test_disk_full_writing_a_baseline(tmp_path, monkeypatch, leo_results):
     assert not b.exists() and not stray(tmp_path)
 
 
-def test_disk_full_at_the_check_is_exit_3(tmp_path, monkeypatch, no_work):
+def test_disk_full_at_the_check_is_exit_3(tmp_path, monkeypatch):
     def enospc(*a, **k):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr("sms_cli.outputs.tempfile.mkstemp", enospc)
-    r = run_cli("run", LEO, "-o", tmp_path / "out")
+    r = run_cli("run", NO_MISSION, "-o", tmp_path / "out")
     assert_clean(r, 3, tmp_path / "out", "the disk is full")
 
 
