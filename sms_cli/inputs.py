@@ -72,27 +72,21 @@ def read_input_bytes(path: Path, what: str, where: Location | None = None, limit
         for test, kind in _KINDS:
             if test(st.st_mode):
                 raise _refuse(path, what, where, f"is {kind}, not a regular file", "give the path of a regular file")
-        if st.st_size > limit:
-            raise _too_big(path, what, where, limit)
         chunks, size = [], 0
-        while size <= limit:  # the file may grow while it is read
+        while size <= limit:  # at most limit + 1 bytes, whatever st_size says
             chunk = os.read(fd, min(1 << 20, limit + 1 - size))
             if not chunk:
                 break
             chunks.append(chunk)
             size += len(chunk)
         if size > limit:
-            raise _too_big(path, what, where, limit)
+            raise _refuse(path, what, where, f"larger than the {limit / 2**20:g} MiB limit of input files",
+                          "input files are small text files; check that this is the intended file")
         return b"".join(chunks)
     except OSError as exc:
         raise _refuse(path, what, where, f"cannot read ({exc.strerror or 'system error'})", "check the file") from None
     finally:
         os.close(fd)
-
-
-def _too_big(path: Path, what: str, where: Location | None, limit: int) -> InputError:
-    return _refuse(path, what, where, f"larger than the {limit / 2**20:g} MiB limit of input files",
-                   "input files are small text files; check that this is the intended file")
 
 
 def _line_col(text: str) -> tuple[int, int]:

@@ -11,8 +11,9 @@ from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Inertia, Le
 
 
 class StrictModel(BaseModel):
-    """A mission-file section: unknown keys are errors (with a nearest-key suggestion); plain
-    numbers must be finite (quantities check it in ``units.to_si``)."""
+    """A mission-file section: unknown keys are errors (with a nearest-key suggestion), and every
+    number must be finite: NaN and infinity are refused in plain numbers, quantities (``"1e999 kg"``),
+    vectors and gains alike (``allow_inf_nan=False`` applies to every float the section holds)."""
 
     model_config = ConfigDict(extra="forbid", frozen=False, populate_by_name=False, allow_inf_nan=False)
 

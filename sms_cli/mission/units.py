@@ -182,8 +182,8 @@ def to_si(value: Any, dimension: str) -> float:
     """Convert a bare number (already SI) or a ``"<number> <unit>"`` string to SI.
 
     A string without a unit (``"1e2"``) is SI, like a bare number. Raises UnitError (with the
-    expected dimension and an example) when the value cannot be read, its unit has another
-    dimension, or it is not finite (NaN, infinity, overflow).
+    expected dimension and an example) when the value cannot be read or its unit has another
+    dimension. NaN and infinity pass through: the mission schema refuses them (``StrictModel``).
     """
     wanted = DIMENSIONS[dimension]
     ex = _EXAMPLES.get(dimension, "1.0")
@@ -191,7 +191,7 @@ def to_si(value: Any, dimension: str) -> float:
     if isinstance(value, bool):
         raise UnitError(f"expected {_a(dimension)}, got a boolean", hint=fix)
     if isinstance(value, (int, float)):
-        return _finite(float(value), value, dimension, fix)
+        return float(value)
     if not isinstance(value, str):
         raise UnitError(f"expected {_a(dimension)} (number or string with unit), got {type(value).__name__}", hint=fix)
     if len(value) > MAX_QUANTITY_CHARS:
@@ -201,7 +201,7 @@ def to_si(value: Any, dimension: str) -> float:
         raise UnitError(f"cannot read {clip(value)} as {_a(dimension)}", hint=fix)
     number = float(m.group(1))
     if not m.group(2):
-        return _finite(number, value, dimension, fix)
+        return number
     try:
         factor, dim = _parse_unit_expression(m.group(2))
     except UnitError as exc:
@@ -212,14 +212,7 @@ def to_si(value: Any, dimension: str) -> float:
         raise UnitError(f"{clip(value)} is not {_a(dimension)}", hint=fix)
     if wanted[3] == 0 and dim[3] != 0:
         factor /= (2.0 * math.pi) ** dim[3]  # angle where none is wanted: count cycles
-    return _finite(number * factor, value, dimension, fix)
-
-
-def _finite(x: float, given: Any, dimension: str, fix: str) -> float:
-    if not math.isfinite(x):
-        raise UnitError(f"{clip(given)} is not a finite {dimension} (NaN or infinity)",
-                        hint=fix.replace("write", "write a finite value:", 1))
-    return x
+    return number * factor
 
 
 def _quantity(dimension: str) -> Any:
