@@ -46,8 +46,7 @@ def _probe(folder: Path, target: Path, what: str) -> None:
         fd, probe = tempfile.mkstemp(prefix=".sms-probe-", dir=folder)
     except OSError as exc:
         if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            raise DiskFull(problems=[Problem(f"cannot write the {what}: the disk is full", Location(target),
-                                             hint="free some space on that disk, or write elsewhere")]) from None
+            raise from_os_error(OSError(exc.errno, exc.strerror, os.fspath(target))) from None
         reason = {errno.EACCES: f"you may not write in {folder} (permission denied)",
                   errno.EPERM: f"you may not write in {folder}",
                   errno.EROFS: f"{folder} is on a read-only file system"}.get(exc.errno, f"files cannot be created in {folder}")
