@@ -100,6 +100,13 @@ def test_non_finite_numbers_are_input_errors_at_load(tmp_path, monkeypatch, body
     assert "finite" in err
 
 
+def test_non_finite_bound_of_a_union_field_is_one_problem(tmp_path, monkeypatch):
+    # `max` is a number or a string with a unit: the string branch's "not a string" is noise
+    m = extending(tmp_path, "requirements:\n  - {name: r, metric: compile.total_mass_kg, max: .nan}\n")
+    err = assert_input_error(compile_cli(tmp_path, monkeypatch, m), m, 4, "requirements.0.max: not a finite number")
+    assert "problem(s)" not in err and "string" not in err and ".float" not in err
+
+
 # ------------------------------------------------------------------ item 5: hostile files
 def test_nul_byte_is_reported_at_its_line(tmp_path, monkeypatch):
     m = tmp_path / "m.yaml"
