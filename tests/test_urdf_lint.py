@@ -73,7 +73,7 @@ def test_missing_limit_accepted_and_reported(tmp_path):
     (lambda m: m.replace("end_effector: ee", "end_effector: eee"), "did you mean 'ee'"),
     (lambda m: m.replace("j3: -0.7", "j4: -0.7"), "no movable joint named 'j4'"),
     (lambda m: m.replace("frame: ee,", "frame: tool,"), "no link or frame named 'tool'"),
-    (lambda m: m.replace("urdf: arm3.urdf", "urdf: nothere.urdf"), "URDF file not found"),
+    (lambda m: m.replace("urdf: arm3.urdf", "urdf: nothere.urdf"), "nothere.urdf: no such file"),
     (lambda m: m.replace("participation: [0.8, 0, 0, 0, 1.1, 0]", "participation: [80, 0, 0, 0, 110, 0]"), "not positive definite"),
 ])
 def test_bad_mission_against_robot_exit_2(tmp_path, edit, message):

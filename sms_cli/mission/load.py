@@ -37,7 +37,7 @@ class LoadedMission:
         (the mission itself, or the file it ``extends``); ``key`` is where it was written."""
         p = Path(relative)
         base = self.source.file_of(key) if key else self.path
-        return p if p.is_absolute() else (Path(base).parent / p).resolve()
+        return p if p.is_absolute() else absolute(Path(base).parent / p)  # a symlink loop is left for the read to report
 
 
 def _unwrap(tp: Any) -> list[Any]:

@@ -93,10 +93,7 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
                                            hint="add a 'robot:' section with 'urdf: path/to/robot.urdf'")])
     warnings = Warnings()
     urdf_path = loaded.resolve(mission.robot.urdf, ("robot", "urdf"))
-    if not urdf_path.exists():
-        raise InputError(problems=[Problem(f"URDF file not found: {urdf_path}", _where(loaded, "robot", "urdf"), "robot.urdf",
-                                           "the path is relative to the mission file")])
-    info = lint_urdf(urdf_path, warnings)
+    info = lint_urdf(urdf_path, warnings, _where(loaded, "robot", "urdf"))
     if strict or mission.robot.strict:
         _refuse_lint(warnings, urdf_path)
     model = build_rigid_model(info.xml, urdf_path)

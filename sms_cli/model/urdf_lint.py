@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +26,7 @@ import numpy as np
 from lxml import etree
 
 from sms_cli.errors import InputError, Location, Problem, Warnings
+from sms_cli.inputs import read_input_bytes
 from sms_cli.model.urdf_inertia import KIND_SUMMARY, classify_inertial
 from sms_cli.model.urdf_numbers import check_numbers, number, vector
 
@@ -78,18 +80,21 @@ class UrdfInfo:
         return out
 
 
-def _read_xml(path: Path):
+def _xml_message(msg: str) -> str:
+    """libxml2's message without its function name ("xmlParseEntityRef: ") and repeated position."""
+    msg = re.sub(r"^xml\w+: ", "", msg or "syntax error")
+    return re.sub(r", line \d+, column \d+$", "", msg)
+
+
+def _read_xml(path: Path, where: Location | None):
     """The parsed <robot> element of a URDF file (InputError with the line on syntax errors)."""
+    raw = read_input_bytes(path, "URDF", where)  # a regular file of at most 16 MiB: no FIFO, device or symlink loop
     try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputError(problems=[Problem(f"cannot read URDF: {exc.strerror or exc}", Location(path),
-                                           hint="check robot.urdf in the mission file (relative to the mission file)")]) from None
-    try:
-        root = etree.fromstring(raw, parser=etree.XMLParser(remove_comments=False, resolve_entities=False))
+        root = etree.fromstring(raw, parser=etree.XMLParser(remove_comments=False, resolve_entities=False, huge_tree=False))
     except etree.XMLSyntaxError as exc:
         line, col = (exc.position if exc.position else (0, 0))
-        raise InputError(problems=[Problem(f"URDF is not well-formed XML: {exc.msg}", Location(path, line, col))]) from None
+        raise InputError(problems=[Problem(f"URDF is not well-formed XML: {_xml_message(exc.msg)}", Location(path, line, col),
+                                           hint="fix the XML at that line (an editor with XML checking shows it)")]) from None
     if root.tag != "robot":
         raise InputError(problems=[Problem(f"root element is <{root.tag}>, expected <robot>", Location(path, root.sourceline or 0))])
     return root
@@ -138,10 +143,12 @@ def _unreachable(root_link: str, links: dict[str, int], children: dict[str, list
     return [name for name in links if name not in seen]
 
 
-def lint_urdf(path: Path, warnings: Warnings) -> UrdfInfo:
-    """Check a URDF file; raise InputError listing every error, collect warnings, return the tree."""
+def lint_urdf(path: Path, warnings: Warnings, where: Location | None = None) -> UrdfInfo:
+    """Check a URDF file; raise InputError listing every error, collect warnings, return the tree.
+
+    ``where`` is the place that named the file (the mission's ``robot.urdf``), for read errors."""
     path = Path(path)
-    root = _read_xml(path)
+    root = _read_xml(path, where)
     problems: list[Problem] = []
 
     def loc(el) -> Location:
