@@ -2,12 +2,18 @@
 
 A failing stage is reported and the stages that do not need it still run; the exit code is the
 worst one met (0 ok < 1 requirements < 2 input < 3 numerical < 4 internal; 130 interrupted is
-raised as KeyboardInterrupt). results.json gets two extra sections: ``run`` (provenance and the
-stage outcomes) and ``requirements`` (the specs and their verdicts).
+raised as KeyboardInterrupt). results.json gets two extra sections: ``run`` (provenance, the
+writer's PID and the stage outcomes; ``state`` running → done or interrupted, read back as
+``killed`` when the writer is gone) and ``requirements`` (the specs and their verdicts).
+
+The results folder is locked for the whole run: a second writer gets exit 2 naming this one. A
+folder holding the results of another mission (neither its name nor its mission file match) is
+started afresh, and stderr says so: results of two missions are never mixed (``ResultsDir.writing``).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -75,14 +81,20 @@ def _echo_err(text: str) -> None:
 def run_mission(mission_path: Path, out: Path, *, progress: bool | None = None, report: bool = True,
                 debug: bool = False, echo: Callable[[str], None] = _echo_err) -> RunSummary:
     """Run the mission's stages into ``out``; returns the summary (never raises for a stage failure)."""
-    from sms_cli.check.requirements import evaluate_all
     from sms_cli.mission.load import load_mission
-    from sms_cli.run.provenance import provenance
 
     loaded = load_mission(mission_path)
-    mission = loaded.mission
     rd = ResultsDir(out)
-    rd.path.mkdir(parents=True, exist_ok=True)
+    with rd.writing(loaded.mission.name, loaded.path):
+        return _run(loaded, mission_path, out, rd, progress, report, debug, echo)
+
+
+def _run(loaded, mission_path: Path, out: Path, rd: ResultsDir, progress, report: bool, debug: bool,
+         echo: Callable[[str], None]) -> RunSummary:
+    from sms_cli.check.requirements import evaluate_all
+    from sms_cli.run.provenance import provenance
+
+    mission = loaded.mission
     _fresh(rd)
     prov = provenance(loaded, f"sms run {mission_path} -o {out}")
     summary = RunSummary(mission.name, rd.path)
@@ -91,7 +103,7 @@ def run_mission(mission_path: Path, out: Path, *, progress: bool | None = None, 
          f"{', '.join(s.name for s in todo) or 'none'})")
 
     def save_run(state: str) -> None:
-        rd.update("run", {**prov, "state": state, "stages": [asdict(s) for s in summary.stages],
+        rd.update("run", {**prov, "state": state, "pid": os.getpid(), "stages": [asdict(s) for s in summary.stages],
                           "exit_code": summary.exit_code})
 
     save_run("running")
