@@ -16,6 +16,7 @@ from sms_cli.sim.actuators import WheelArray, clip_joint_torque
 from sms_cli.sim.attitude_math import attitude_error
 from sms_cli.sim.interfaces import ArmRef, EndEffectorRef
 from sms_cli.sim.metrics import Trace, conservation, summarize
+from sms_cli.sim.recorder import RecordingInterrupted
 from sms_cli.sim.references import AttitudeProfile, JointProfile
 from sms_cli.sim.schema import PhaseSpec, SimulationSpec
 from sms_cli.sim.sensors import Sensors
@@ -52,7 +53,7 @@ class Diverged(Exception):
 
 @dataclass
 class SimResult:
-    status: str  # completed | diverged
+    status: str  # completed | diverged | interrupted (SIGINT/SIGTERM: the metrics of what ran)
     t_end: float
     steps: int
     phases: list[dict]
@@ -307,6 +308,11 @@ class Simulation:
             status, why = "diverged", str(exc)
             if self.rec is not None:
                 self._event(t, "diverged", {"reason": why}, level="error")
+        except RecordingInterrupted:  # SIGINT/SIGTERM at a recorder call: the trace is whole up to t
+            status = "interrupted"
+            if not phase_spans or phase_spans[-1][0] != ip:
+                phase_spans.append((ip, t_phase0, t))
+            self._event(t, "interrupted", {"t": t}, level="warning")
         finally:
             self.progress.close()
             if self.rec is not None:

@@ -39,13 +39,20 @@ t ≥ t₀ + k/r (k = 1, 2, …; tolerance 1 ppm of the period), where t₀ is t
 the mean rate is r whatever the step; calls in between return at once (≈ 0.1 µs). ``None``
 records every call.
 
-Interruption: inside ``with rec:`` a Ctrl-C that lands while the recorder is writing is held
-until the write is done, then raised as ``KeyboardInterrupt``; ``__exit__`` finishes the file
-(status ``interrupted``; ``failed`` for any other exception; ``completed`` on a normal exit).
-Every compressed chunk is flushed to the OS when written, so even a killed process leaves its
-complete chunks on disk (``sms inspect`` then reports the file as unfinished). Used without
-``with``, the file opens at the first write and ``finish()`` must be called; Ctrl-C is then not
-deferred.
+Interruption: inside ``with rec:`` the recorder handles SIGINT and SIGTERM (each when its
+handler is Python's ``default_int_handler``; ``sms`` installs that one for SIGTERM too). Before
+anything is recorded a signal raises ``KeyboardInterrupt`` at once. Once recording (and should
+that first raise be lost, as in a weakref callback), it is held and raised as
+``RecordingInterrupted`` (a ``KeyboardInterrupt``) by the next ``take``, ``select``, ``write_*``
+call, after that call's write is complete: the caller's own state is consistent there, so a
+loop can catch it and summarise what ran. A signal that arrives after
+``finish()`` is raised by ``__exit__``. ``__exit__`` finishes the file (status ``interrupted``;
+``failed`` for any other exception; ``completed`` on a normal exit). Every write goes to the OS
+at once and leaves a valid file (see ``mcap_writer``), so even a killed process leaves its
+complete chunks readable (``sms inspect`` says the run was killed). A full disk cuts the file
+back to its last whole chunk and raises the ``OSError``; the file stays readable. Used without
+``with``, the file opens at the first write and ``finish()`` must be called; signals are then
+not handled.
 
 Cost (``benches/bench_recorder.py``): a recorded sample of 15 links + 8 topics ≈ 50 µs, a
 skipped call ≈ 0.1 µs, ≈ 1.6 MB per 1000 such samples (zstd level 1).
@@ -85,6 +92,13 @@ _NUM = b"%.12g"
 _NANO = b"%de-9"  # a pose number as an integer count of 1e-9 (valid JSON: 1234567890e-9 = 1.23456789)
 _NANO_LIMIT = 9.0e9  # |value| below which value·1e9 fits an int64
 _PERIOD_TOL = 1e-6  # decimation tolerance, fraction of the period
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class RecordingInterrupted(KeyboardInterrupt):
+    """A SIGINT/SIGTERM raised at a safe point of the recording (see the module docstring)."""
 
 
 def _jsonable(obj: Any) -> Any:
@@ -231,11 +245,10 @@ class McapRecorder:
         self._plans: dict[tuple, _ScalarPlan] = {}
         self._block_templates: dict[tuple, tuple] = {}
 
-        # Ctrl-C deferral
+        # SIGINT/SIGTERM deferral
         self._busy = False
         self._pending_interrupt = False
-        self._old_handler = None
-        self._installed_handler = None
+        self._old_handlers: dict[int, Any] = {}
 
     # ------------------------------------------------------------------ set-up
     def add_transform_tree(self, links: list[str], parents: list[str], *, relative: bool = False) -> None:
@@ -302,7 +315,7 @@ class McapRecorder:
         if self.finished:
             raise RuntimeError("recorder: the recording is finished")
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb")
+        self._file = open(self.path, "wb", buffering=0)  # each record goes to the OS whole, or is cut back
         w = ChunkedMcapWriter(
             self._file,
             chunk_size=self._chunk_size,
@@ -345,11 +358,9 @@ class McapRecorder:
     # ------------------------------------------------------------------ context manager
     def __enter__(self) -> "McapRecorder":
         if threading.current_thread() is threading.main_thread():
-            current = signal.getsignal(signal.SIGINT)
-            if current is signal.default_int_handler:
-                self._old_handler = current
-                self._installed_handler = self._on_sigint
-                signal.signal(signal.SIGINT, self._installed_handler)
+            for sig in _SIGNALS:
+                if signal.getsignal(sig) is signal.default_int_handler:
+                    self._old_handlers[sig] = signal.signal(sig, self._on_signal)
         try:
             self._ensure_open()
         except BaseException as exc:
@@ -360,30 +371,40 @@ class McapRecorder:
     def __exit__(self, exc_type, exc, tb) -> bool:
         try:
             if not self.finished:
-                if exc_type is None:
+                if exc_type is None and not self._pending_interrupt:
                     self.finish("completed")
-                elif issubclass(exc_type, KeyboardInterrupt):
+                elif exc_type is None or issubclass(exc_type, KeyboardInterrupt):
                     self.finish("interrupted")
                 else:
                     self.finish("failed", {"exception": exc_type.__name__, "message": str(exc)[:500]})
+        except OSError:
+            if exc_type is None:
+                raise  # else the first error goes on; the file keeps its last whole chunk
         finally:
-            if self._installed_handler is not None:
-                if signal.getsignal(signal.SIGINT) is self._installed_handler:
-                    signal.signal(signal.SIGINT, self._old_handler)
-                self._installed_handler = None
+            for sig, old in self._old_handlers.items():
+                if signal.getsignal(sig) == self._on_signal:
+                    signal.signal(sig, old)
+            self._old_handlers = {}
+        pending, self._pending_interrupt = self._pending_interrupt, False
+        if exc_type is None and pending:
+            raise KeyboardInterrupt
         return False
 
-    def _on_sigint(self, signum, frame) -> None:
-        if self._busy:
-            self._pending_interrupt = True
-            return
-        raise KeyboardInterrupt
+    def _on_signal(self, signum, frame) -> None:
+        self._pending_interrupt = True  # raised by the next recorder call, even if the raise below is lost
+        if not (self._busy or self._started):  # nothing recorded yet: stop at once
+            raise KeyboardInterrupt
 
     def _end_busy(self) -> None:
         self._busy = False
-        if self._pending_interrupt:
+        if self._pending_interrupt and not self.finished:
             self._pending_interrupt = False
-            raise KeyboardInterrupt
+            raise RecordingInterrupted
+
+    def _check_interrupt(self) -> None:
+        if self._pending_interrupt and not self.finished:
+            self._pending_interrupt = False
+            raise RecordingInterrupted
 
     # ------------------------------------------------------------------ data
     def due(self, t: float) -> bool:
@@ -393,6 +414,8 @@ class McapRecorder:
     def take(self, t: float) -> bool:
         """Offer time t for a sample to be written later with ``write_block`` (one ``write_step``
         call's worth of decimation): True reserves it, and the next due time moves on."""
+        if self._pending_interrupt:
+            self._check_interrupt()
         self._calls += 1
         self._t_seen = t
         if t < self._next_t:
@@ -419,6 +442,8 @@ class McapRecorder:
         ``add_transform_tree``. ``scalars``: topic → {field: number or 1-D array}. A topic keeps
         its fields (names, array lengths) for the whole run. Returns True when recorded.
         """
+        if self._pending_interrupt:
+            self._check_interrupt()
         self._calls += 1
         self._t_seen = t
         if t < self._next_t and not force:
@@ -494,6 +519,7 @@ class McapRecorder:
     def select(self, times: np.ndarray) -> np.ndarray:
         """Offer successive times at once (``take`` for each): the indices of those reserved for
         a sample, which ``write_block`` then records."""
+        self._check_interrupt()
         times = np.asarray(times, dtype=float)
         if times.size == 0:
             return np.zeros(0, dtype=np.intp)
@@ -829,13 +855,15 @@ class McapRecorder:
             }
             for k, v in (detail or {}).items():
                 run[str(k)] = v if isinstance(v, str) else _dumps(v)
-            w.add_metadata("run", run)
-            w.finish()
-            self._file.close()
-            self.finished = True
-            self.status = status
+            try:
+                w.add_metadata("run", run)
+                w.finish()
+            finally:  # a full disk: the file keeps its last whole chunk and an end marker
+                self._file.close()
+                self.finished = True
+                self.status = status
         finally:
-            self._end_busy()
+            self._busy = False
 
     # ------------------------------------------------------------------ introspection
     @property
@@ -848,5 +876,18 @@ class McapRecorder:
         """``write_step`` calls so far (recorded or skipped)."""
         return self._calls
 
+    @property
+    def sim_time(self) -> float:
+        """The last simulation time offered (s; 0 before any)."""
+        return float(self._t_seen or 0.0)
 
-__all__ = ["McapRecorder", "RUN_STATUSES", "TOPIC_TF", "TOPIC_ROBOT_DESCRIPTION", "TOPIC_EVENTS", "TOPIC_LOG", "WORLD_FRAME"]
+    @property
+    def on_disk(self) -> tuple[int, float | None]:
+        """(messages, last log time in s) in the chunks written so far."""
+        if self._w is None:
+            return 0, None
+        n, t = self._w.on_disk
+        return n, None if t is None else t / 1e9
+
+
+__all__ = ["McapRecorder", "RecordingInterrupted", "RUN_STATUSES", "TOPIC_TF", "TOPIC_ROBOT_DESCRIPTION", "TOPIC_EVENTS", "TOPIC_LOG", "WORLD_FRAME"]

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import csv
+import errno
 import io
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from sms_cli.errors import InputError, NumericalError, Problem
+from sms_cli.errors import InputError, Location, NumericalError, Problem
 from sms_cli.mission.load import LoadedMission
 from sms_cli.results import ResultsDir, write_text_atomic
 
@@ -41,39 +43,93 @@ def _trace_csv(trace: dict, sm) -> str:
 def run_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None = None,
                    progress: bool | None = None) -> dict:
     """Simulate the mission; returns the ``simulate`` section written to results.json.
-    Raises NumericalError (exit 3) after writing everything when the simulation diverged."""
+
+    What each ending leaves: diverged → everything written, then NumericalError (exit 3).
+    SIGINT/SIGTERM (KeyboardInterrupt, exit 130) → the recording finalised, and the section
+    (status ``interrupted``, the time reached), CSV and plots of what ran. A full disk → the
+    recording cut back to its last whole chunk (readable), the section says so, DiskFull (exit 3).
+    Results of another mission in ``out_dir`` are not mixed in (``ResultsDir.writing``)."""
     from sms_cli.model import compile_system
-    from sms_cli.model.summary import model_summary
-    from sms_cli.sim.engine import Simulation
-    from sms_cli.sim.plots import plot_simulation
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.sim.validate import validate_simulation
 
     spec = loaded.mission.simulation
     if spec is None:
         raise InputError(problems=[Problem("this mission has no 'simulation:' section", loaded.source.locate(()),
                                            hint="add simulation: {dt, control_rate, attitude, arm, phases: [...]}")])
     sm = compile_system(loaded)
-    sm.require_dynamics("the simulation")
+    validate_simulation(sm, loaded)  # a bad name is exit 2 before a recording exists
     results = ResultsDir(out_dir)
-    mcap_path = Path(mcap_path) if mcap_path else results.file("simulation.mcap")
+    with results.writing(loaded.mission.name, loaded.path):
+        return _simulate(loaded, sm, results, Path(mcap_path) if mcap_path else results.file("simulation.mcap"), progress)
+
+
+def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path, progress: bool | None) -> dict:
+    from sms_cli.model.summary import model_summary
+    from sms_cli.sim.engine import Simulation
+    from sms_cli.sim.recorder import McapRecorder
+
+    spec = loaded.mission.simulation
     summary = model_summary(sm)
     rec = McapRecorder(mcap_path, mission_text=loaded.text, mission_name=loaded.mission.name, model_summary=summary,
                        urdf_text=sm.urdf_text, versions=versions(), record_rate_hz=spec.record_rate)
     links = list(sm.link_parents)
     rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
-    with rec:
-        result = Simulation(sm, spec, rec, progress, results_dir=results.path, mission_dir=loaded.path.parent).run()
-        rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
-    write_text_atomic(results.file("simulation.csv"), _trace_csv(result.trace, sm))
-    plots = plot_simulation(result.trace, sm, [p.name for p in spec.phases], results.path)
-    section = {
-        "status": result.status, "divergence": result.divergence or None, "t_end_s": result.t_end, "steps": result.steps,
-        "overall": result.overall, "phases": result.phases, "conservation": result.conservation, "timing": result.timing,
-        "files": {"mcap": str(mcap_path), "csv": "simulation.csv", "plots": [p.name for p in plots]},
-    }
-    results.update("simulate", section)
+    base = {"mission": loaded.mission.name, "mission_file": str(loaded.path)}
+    result = None
+    try:
+        with rec:  # once recording, a signal is held until the outputs are written
+            result = Simulation(sm, spec, rec, progress, results_dir=results.path, mission_dir=loaded.path.parent).run()
+            rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
+            section = _write_outputs(results, result, sm, spec, mcap_path, base)
+    except KeyboardInterrupt:
+        if result is None:  # before the first sample (or a second signal): no trace to write
+            results.update("simulate", {**base, "status": "interrupted", "t_end_s": rec.sim_time, "steps": rec.steps,
+                                        "files": {"mcap": str(mcap_path)}})
+        raise
+    except OSError as exc:
+        if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
+            raise
+        raise _disk_full(results, rec, mcap_path, base) from None
+    if result.status == "interrupted":
+        print(f"interrupted at t = {result.t_end:.6g} s: the metrics, CSV and plots of what ran are in {results.path}/, "
+              f"the recording in {mcap_path}", file=sys.stderr, flush=True)
+        raise KeyboardInterrupt
     if result.status == "diverged":
         raise NumericalError(f"the simulation diverged at t = {result.t_end:.4g} s: {result.divergence}. "
                              f"What ran is in {mcap_path} and {results.file('results.json')}; "
                              "reduce dt, lower the gains or check the model")
     return section
+
+
+def _write_outputs(results: ResultsDir, result, sm, spec, mcap_path: Path, base: dict) -> dict:
+    """The CSV, the plots and the ``simulate`` section of a run (whole, or what ran of it)."""
+    from sms_cli.sim.plots import plot_simulation
+
+    write_text_atomic(results.file("simulation.csv"), _trace_csv(result.trace, sm))
+    plots = plot_simulation(result.trace, sm, [p.name for p in spec.phases], results.path)
+    section = {
+        "status": result.status, "divergence": result.divergence or None, "t_end_s": result.t_end, "steps": result.steps,
+        "overall": result.overall, "phases": result.phases, "conservation": result.conservation, "timing": result.timing,
+        **base, "files": {"mcap": str(mcap_path), "csv": "simulation.csv", "plots": [p.name for p in plots]},
+    }
+    results.update("simulate", section)
+    return section
+
+
+def _disk_full(results: ResultsDir, rec, mcap_path: Path, base: dict):
+    """The DiskFull error (exit 3) after the disk filled; records what happened in results.json if it can."""
+    from sms_cli.outputs import DiskFull
+
+    messages, until = rec.on_disk
+    kept = (f"{mcap_path} keeps {messages} messages up to t = {until:.6g} s and stays readable (sms inspect shows it)"
+            if until is not None else f"{mcap_path} holds no complete chunk")
+    section = {**base, "status": "failed", "error": "the disk is full", "t_end_s": rec.sim_time, "steps": rec.steps,
+               "recorded_until_s": until, "files": {"mcap": str(mcap_path)}}
+    try:
+        results.update("simulate", section)
+        said = f"{results.file('results.json')} says so"
+    except OSError:
+        said = f"{results.file('results.json')} could not be updated either"
+    return DiskFull(problems=[Problem(
+        f"the disk filled while simulating (t = {rec.sim_time:.6g} s reached): {kept}; {said}", Location(mcap_path),
+        hint="free some space on that disk, or write elsewhere (-o), and run again")])

@@ -20,6 +20,7 @@ from sms_cli.model.system import SystemModel
 from sms_cli.sim.attitude_math import attitude_error
 from sms_cli.sim.compiled.kinematics import SampleKinematics
 from sms_cli.sim.record_buffer import RecordBuffer
+from sms_cli.sim.recorder import RecordingInterrupted
 from sms_cli.sim.schema import SimulationSpec
 
 CHUNK_STEPS = 20_000
@@ -190,6 +191,11 @@ class CompiledSimulation:
             status, why = "diverged", str(exc)
             if self.rec is not None:
                 self.rec.write_event(t, "diverged", {"reason": why}, level="error")
+        except RecordingInterrupted:  # SIGINT/SIGTERM at a recorder call: the slices are whole up to t
+            status = "interrupted"
+            if not spans or spans[-1][0] != ip:
+                spans.append((ip, t_phase0, t))
+            self.rec.write_event(t, "interrupted", {"t": t}, level="warning")
         finally:
             self.progress.close()
         wall = time.perf_counter() - wall0
