@@ -225,7 +225,8 @@ class ResultsDir:
             current, fresh = {}, True
         run = current.get("run") if isinstance(current.get("run"), dict) else {}
         if run.get("state") == "killed":
-            stage = next((s.get("name") for s in run.get("stages", [])[::-1] if isinstance(s, dict)), None)
+            stage = next((s.get("name") for s in run.get("stages", [])[::-1]
+                          if isinstance(s, dict) and s.get("status") != "not configured"), None)
             _say(f"{f}: the previous run ({run.get('command') or 'sms run'}) was killed"
                  + (f" after stage '{stage}'" if stage else "") + "; its results are incomplete")
         other = _other_mission(current, mission, mission_file)

@@ -201,7 +201,7 @@ def test_sigkill_leaves_a_readable_recording_and_the_next_run_says_so(tmp_path):
     code, text = finish(proc, err)
     assert code == 0, text
     assert f"removed 1 temporary file(s) left by a killed run: {stale.name}" in text
-    assert "the previous run" in text and "was killed" in text
+    assert "the previous run" in text and "was killed after stage 'compile'" in text
     assert not stale.exists() and live.exists()
     live.unlink()
 
@@ -369,3 +369,22 @@ simulation:
     r = run_cli("simulate", m, "-o", tmp_path / "out")
     assert r.exit_code == 2 and "joint_9" in r.stderr, r.output
     assert not (tmp_path / "out" / "simulation.mcap").exists()
+
+
+def test_damaged_first_chunk_keeps_the_rest(tmp_path):
+    """The first chunk declares every channel; the summary's copies let repair keep the others."""
+    path = tmp_path / "run.mcap"
+    small_recording(path)
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    ci = summary.chunk_indexes[0]
+    data = bytearray(path.read_bytes())
+    data[ci.chunk_start_offset + ci.chunk_length - 20] ^= 0x01
+    path.write_bytes(bytes(data))
+    r = run_cli("inspect", path)
+    assert r.exit_code == 2 and f"chunk at byte {ci.chunk_start_offset} (t = 0 – " in r.stderr, r.output
+    readable = int(re.search(r"Still readable: (\d+) messages", r.stderr).group(1))
+    r = run_cli("inspect", "--repair", path)
+    assert r.exit_code == 0, r.output
+    n, _, meta = read_mcap(path)
+    assert n == readable > 0 and meta["run"]["status"] == "completed"

@@ -134,6 +134,7 @@ def _run(loaded, mission_path: Path, out: Path, rd: ResultsDir, progress, report
             outcome = StageOutcome(stage.name, "failed", time.perf_counter() - t0, code, msg)
             failed.add(stage.name)
         summary.stages.append(outcome)
+        save_run("running")  # what a killed run leaves says which stages ended
         mark = "ok" if outcome.status == "ok" else f"FAILED (exit {outcome.exit_code})"
         echo(f"[{k}/{len(todo)}] {stage.name}: {mark} in {outcome.seconds:.2f} s")
         if outcome.message:

@@ -107,21 +107,21 @@ class Scan:
 def scan(path: Path) -> Scan:
     """Read a recording record by record from the start: every whole, undamaged chunk counts; a
     damaged chunk is listed and skipped; reading stops at a record that cannot be parsed."""
-    from mcap.records import Attachment, Chunk, Footer, Header, MessageIndex, Metadata
+    from mcap.records import Attachment, Channel, Chunk, Footer, Header, MessageIndex, Metadata, Schema
 
     path = Path(path)
     with open(path, "rb") as f:
         size = path.stat().st_size
         mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
         try:
-            return _scan(mm, size, (Attachment, Chunk, Footer, Header, MessageIndex, Metadata))
+            return _scan(mm, size, (Attachment, Channel, Chunk, Footer, Header, MessageIndex, Metadata, Schema))
         finally:
             if size:
                 mm.close()
 
 
 def _scan(mm, size: int, cls) -> Scan:
-    Attachment, Chunk, Footer, Header, MessageIndex, Metadata = cls
+    Attachment, Channel, Chunk, Footer, Header, MessageIndex, Metadata, Schema = cls
     out = Scan(size)
     pos = len(MAGIC)
     after_data = False
@@ -143,8 +143,11 @@ def _scan(mm, size: int, cls) -> Scan:
                 footer = Footer.read(_stream(content))
                 out.end = "marker" if footer.summary_start == 0 else "index"
                 break
-            if after_data:
-                pass  # summary records: the recording itself is before DataEnd
+            if op in (OP_SCHEMA, OP_CHANNEL):  # outside chunks: a file without messages, or the summary's copies
+                record = (Schema if op == OP_SCHEMA else Channel).read(_stream(content))
+                (out.schemas if op == OP_SCHEMA else out.channels).setdefault(record.id, record)
+            elif after_data:
+                pass  # the rest of the summary: the recording itself is before DataEnd
             elif op == OP_HEADER:
                 out.header = Header.read(_stream(content))
             elif op == OP_CHUNK:
@@ -399,6 +402,18 @@ def repair_recording(path: str | Path) -> dict[str, Any]:
         w = ChunkedMcapWriter(out, compression=compression, chunk_size=1 << 62, live_end=False,
                               library=sc.header.library if sc.header is not None else "sms inspect --repair",
                               profile=sc.header.profile if sc.header is not None else "")
+
+        def channel(cid: int) -> int | None:
+            """The new id of channel ``cid`` (registered at first use; None: it was only in a damaged chunk)."""
+            if cid not in channel_ids and cid in sc.channels:
+                ch = sc.channels[cid]
+                schema = sc.schemas.get(ch.schema_id)
+                if schema is not None and schema.id not in schema_ids:
+                    schema_ids[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
+                channel_ids[cid] = w.register_channel(ch.topic, ch.message_encoding, schema_ids.get(ch.schema_id, 0),
+                                                      dict(ch.metadata))
+            return channel_ids.get(cid)
+
         has_run = False
         for kind, record, data in sc.items:
             if kind == "metadata":
@@ -408,17 +423,15 @@ def repair_recording(path: str | Path) -> dict[str, Any]:
                 w.add_attachment(record.name, record.media_type, record.data, record.log_time)
             else:
                 for op, rec, cid, t, start, end in _inner(data):
-                    if op == OP_SCHEMA and rec.id not in schema_ids:
-                        schema_ids[rec.id] = w.register_schema(rec.name, rec.encoding, rec.data)
-                    elif op == OP_CHANNEL and rec.id not in channel_ids:
-                        channel_ids[rec.id] = w.register_channel(rec.topic, rec.message_encoding,
-                                                                 schema_ids.get(rec.schema_id, 0), dict(rec.metadata))
+                    if op == OP_CHANNEL:
+                        channel(rec.id)
                     elif op == OP_MESSAGE:
-                        if cid not in channel_ids:  # its channel was declared in a damaged chunk
+                        new_id = channel(cid)
+                        if new_id is None:
                             lost += 1
                             continue
                         seq = struct.unpack_from("<I", data, start + 2)[0]
-                        w.add_message(channel_ids[cid], t, data[start + 22:end], seq)
+                        w.add_message(new_id, t, data[start + 22:end], seq)
                         kept += 1
                         last = t if last is None else max(last, t)
                 w.flush_chunk()
