@@ -212,6 +212,8 @@ def test_second_writer_is_refused_naming_the_holder(tmp_path):
     proc, err = start(tmp_path, "simulate", long_slew(tmp_path, "first mission"), "-o", out)
     try:
         wait_for(out / "simulation.mcap", proc, min_bytes=1)
+        r = run_cli("inspect", out / "simulation.mcap")  # a reader is welcome, and told the file grows
+        assert r.exit_code == 0 and "status: recording" in r.output and f"still being written (PID {proc.pid})" in r.output
         for cmd in (["run", MISSIONS / "basilisk_rw_reference.yaml", "-o", out],
                     ["simulate", MISSIONS / "caldera_s1_slew.yaml", "-o", out]):
             r = subprocess.run([sys.executable, "-m", "sms_cli", *map(str, cmd)], cwd=ROOT, capture_output=True, text=True,

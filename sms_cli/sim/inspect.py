@@ -328,11 +328,16 @@ def inspect_recording(path: str | Path) -> dict[str, Any]:
             compression = sorted({c.compression or "none" for k, c, _ in sc.items if k == "chunk"})
             metadata = {r.name: dict(r.metadata) for k, r, _ in sc.items if k == "metadata"}
             attachments = [r.name for k, r, _ in sc.items if k == "attachment"]
-            if sc.end == "marker":  # the writer's end marker: it stopped before finishing the file
-                killed = "run" not in metadata
-                note = ((f"the run was killed at about t = {_s(sc.last_ns)} s; " if killed else "")
-                        + f"{_readable(sc)} are readable; the file has no index: run `sms inspect --repair {path}` "
-                        "to add one")
+            if sc.end == "marker":  # the writer's end marker: it is still writing, or stopped before finishing
+                from sms_cli.results import lock_holder, pid_alive
+
+                writer = lock_holder(path.parent).get("pid")
+                if "run" not in metadata and pid_alive(writer):
+                    note = f"still being written (PID {writer}): {_readable(sc)} so far"
+                else:
+                    note = (("" if "run" in metadata else f"the run was killed at about t = {_s(sc.last_ns)} s; ")
+                            + f"{_readable(sc)} are readable; the file has no index: run `sms inspect --repair {path}` "
+                            "to add one")
 
     topics = []
     for cid, channel in sorted(channels.items(), key=lambda kv: kv[1].topic):
@@ -361,7 +366,8 @@ def inspect_recording(path: str | Path) -> dict[str, Any]:
         "file": str(path),
         "size_bytes": size,
         "library": header.library if header is not None else "",
-        "status": run.get("status") or ("killed" if note.startswith("the run was killed") else None),
+        "status": run.get("status") or ("recording" if note.startswith("still being written")
+                                         else "killed" if note.startswith("the run was killed") else None),
         "mission": metadata.get("mission", {}).get("name"),
         "start_s": min(starts) if starts else None,
         "end_s": max(ends) if ends else None,
