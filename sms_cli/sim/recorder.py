@@ -45,8 +45,8 @@ anything is recorded a signal raises ``KeyboardInterrupt`` at once. Once recordi
 that first raise be lost, as in a weakref callback), it is held and raised as
 ``RecordingInterrupted`` (a ``KeyboardInterrupt``) by the next ``take``, ``select``, ``write_*``
 call, after that call's write is complete: the caller's own state is consistent there, so a
-loop can catch it and summarise what ran. A signal that arrives after
-``finish()`` is raised by ``__exit__``. ``__exit__`` finishes the file (status ``interrupted``;
+loop can catch it and summarise what ran. A signal that arrives after ``finish()`` is raised
+by ``__exit__``. ``__exit__`` finishes the file (status ``interrupted``;
 ``failed`` for any other exception; ``completed`` on a normal exit). Every write goes to the OS
 at once and leaves a valid file (see ``mcap_writer``), so even a killed process leaves its
 complete chunks readable (``sms inspect`` says the run was killed). A full disk cuts the file
@@ -397,9 +397,7 @@ class McapRecorder:
 
     def _end_busy(self) -> None:
         self._busy = False
-        if self._pending_interrupt and not self.finished:
-            self._pending_interrupt = False
-            raise RecordingInterrupted
+        self._check_interrupt()
 
     def _check_interrupt(self) -> None:
         if self._pending_interrupt and not self.finished:
@@ -842,7 +840,8 @@ class McapRecorder:
             w = self._w
             if not self._started:
                 self._start(0)
-            w.flush_chunk()
+            if w.failed is None:  # after a failed write (a full disk) the open chunk is lost; the rest is tried
+                w.flush_chunk()
             run = {
                 "status": status,
                 "steps": str(self._calls),
