@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Inertia, Length, SpecError
@@ -51,6 +50,8 @@ def _inertia6(v: list[float]) -> list[float]:
         v = [v[0], v[1], v[2], 0.0, 0.0, 0.0]
     if len(v) != 6:
         raise ValueError("inertia is [ixx, iyy, izz] or [ixx, iyy, izz, ixy, ixz, iyz]")
+    import numpy as np  # here, not at module level: `sms --help` must not import numpy
+
     ixx, iyy, izz, ixy, ixz, iyz = v
     moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
     tol = 1e-9 * max(float(np.abs(moments).sum()), 1e-300)
