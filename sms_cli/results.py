@@ -200,10 +200,7 @@ class ResultsDir:
         if not isinstance(data, dict):
             raise InputError(problems=[Problem(f"is {kind_of(data)}, not a mapping of stage sections: {RESULTS_FILE} "
                                                "is damaged", Location(f, 1, 1), hint=fix)])
-        run = data.get("run")
-        if isinstance(run, dict) and run.get("state") == "running" and not pid_alive(run.get("pid")):
-            data["run"] = {**run, "state": "killed"}
-        return data
+        return with_run_state(data)
 
     @contextlib.contextmanager
     def writing(self, mission: str, mission_file: Path | str) -> Iterator[dict[str, Any]]:
@@ -245,6 +242,14 @@ class ResultsDir:
             current = self.read()
             current[section] = _jsonable(data)
             return write_json_atomic(self.file(RESULTS_FILE), current)
+
+
+def with_run_state(data: dict[str, Any]) -> dict[str, Any]:
+    """Results whose ``run`` section, left at state ``running`` by a process that is gone, reads ``killed``."""
+    run = data.get("run")
+    if isinstance(run, dict) and run.get("state") == "running" and not pid_alive(run.get("pid")):
+        data = {**data, "run": {**run, "state": "killed"}}
+    return data
 
 
 def _other_mission(results: dict[str, Any], name: str, mission_file: Path | str) -> str:

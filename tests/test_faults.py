@@ -390,3 +390,22 @@ def test_damaged_first_chunk_keeps_the_rest(tmp_path):
     assert r.exit_code == 0, r.output
     n, _, meta = read_mcap(path)
     assert n == readable > 0 and meta["run"]["status"] == "completed"
+
+
+@pytest.mark.parametrize("state", ["running", "interrupted"])
+def test_check_and_report_of_a_killed_or_interrupted_run_fail_and_say_so(tmp_path, state):
+    """A run left 'running' by a dead process reads as killed in sms check and sms report, as in sms run."""
+    out = tmp_path / "r"
+    assert run_cli("run", MISSIONS / "hipparcos_leo.yaml", "-o", out, "--no-report").exit_code == 0
+    doc = json.loads((out / "results.json").read_text())
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    doc["run"] = {**doc["run"], "state": state, "pid": dead.pid}
+    (out / "results.json").write_text(json.dumps(doc))
+    word = "killed" if state == "running" else "interrupted"
+    r = run_cli("check", out)
+    assert r.exit_code == 1, r.output
+    assert f"was {word}: its results are incomplete" in r.stdout
+    r = run_cli("report", out, "-o", tmp_path / "report.html")
+    assert r.exit_code == 0, r.output
+    assert f"the run was {word}: results incomplete" in (tmp_path / "report.html").read_text()

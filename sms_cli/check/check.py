@@ -20,7 +20,7 @@ from sms_cli.check.requirements import Verdict, evaluate_all, format_verdicts
 from sms_cli.check.schema import RequirementSpec
 from sms_cli.errors import EXIT_OK, EXIT_REQUIREMENTS, InputError, Location, Problem
 from sms_cli.outputs import key_line, kind_of, read_json_file
-from sms_cli.results import RESULTS_FILE, write_json_atomic
+from sms_cli.results import RESULTS_FILE, with_run_state, write_json_atomic
 
 
 def _rerun(folder: Path) -> str:
@@ -38,7 +38,7 @@ def load_results(folder: Path) -> tuple[dict[str, Any], bytes, Path]:
     if not isinstance(data, dict):
         raise InputError(problems=[Problem(f"is {kind_of(data)}, not the results of a run (a mapping of stage sections)",
                                            Location(f, 1), hint=_rerun(f.parent))])
-    return data, raw, f
+    return with_run_state(data), raw, f
 
 
 def read_results(folder: Path) -> tuple[dict[str, Any], Path]:
@@ -74,11 +74,12 @@ class CheckOutcome:
     verdicts: list[Verdict] | None = None
     drifts: list[Drift] | None = None
     notes: list[str] = field(default_factory=list)
+    incomplete: str = ""  # why the results are not those of a whole run (killed, interrupted): the check fails
 
     @property
     def exit_code(self) -> int:
         bad = any(not v.passed for v in self.verdicts or []) or any(not d.passed for d in self.drifts or [])
-        return EXIT_REQUIREMENTS if bad else EXIT_OK
+        return EXIT_REQUIREMENTS if bad or self.incomplete else EXIT_OK
 
     def format(self) -> str:
         out = []
@@ -87,6 +88,8 @@ class CheckOutcome:
         if self.drifts is not None:
             out.append(format_drifts(self.drifts))
         out.extend(n + "\n" for n in self.notes)
+        if self.incomplete:
+            out.append(f"FAIL: {self.incomplete}\n")
         out.append(("PASS" if self.exit_code == 0 else "FAIL") + f": {self.mission}\n")
         return "".join(out)
 
@@ -97,6 +100,10 @@ def run_check(results_dir: Path, mission: Path | None = None, baseline: Path | N
     results, results_file = read_results(results_dir)
     name = str(section(results, "run").get("mission") or section(results, "compile").get("name") or Path(results_dir).name)
     outcome = CheckOutcome(name)
+    state = section(results, "run").get("state")
+    if state in ("killed", "interrupted"):
+        outcome.incomplete = (f"the run into {Path(results_dir)} was {state}: its results are incomplete; "
+                              "re-run the mission to check it")
     reqs: list[RequirementSpec] | None
     if mission is not None:
         from sms_cli.mission.load import load_mission

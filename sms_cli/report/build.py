@@ -94,6 +94,8 @@ def _dicts(x: Any) -> list[dict]:
 def _verdict(run: dict[str, Any], verdicts: list[dict]) -> tuple[str, str]:
     failed = [str(s.get("name")) for s in _dicts(run.get("stages")) if s.get("status") in ("failed", "skipped", "interrupted")]
     bad = [v for v in verdicts if v["status"] != "pass"]
+    if run.get("state") in ("killed", "interrupted"):
+        return f"the run was {run['state']}: results incomplete" + (f" (stages not ended: {', '.join(failed)})" if failed else ""), "fail"
     if failed:
         return f"stages failed: {', '.join(failed)}" + (f"; {len(bad)} requirement(s) not met" if bad else ""), "fail"
     if bad:
