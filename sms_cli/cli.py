@@ -19,17 +19,16 @@ from sms_cli import __version__
 from sms_cli.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
-    EXIT_NUMERICAL,
     SmsError,
 )
-from sms_cli.outputs import Output, from_os_error
+from sms_cli.failures import failure
+from sms_cli.outputs import Output
 
 EXIT_CODES_HELP = (
     "Exit codes: 0 ok · 1 requirements not met · 2 invalid input or usage · "
     "3 numerical failure (infeasible synthesis, diverged simulation, singular model) or the disk is full · "
     "4 internal error (a bug: please report it) · 130 interrupted."
 )
-EXIT_INTERNAL = 4
 
 app = typer.Typer(
     name="sms",
@@ -99,17 +98,9 @@ def _guarded(fn: Callable[[], int | None], outputs: Sequence[Output]) -> int:
     except Exception as exc:  # noqa: BLE001 - the contract is: never a raw traceback
         if _state["debug"]:
             raise
-        mapped = from_os_error(exc, outputs) if isinstance(exc, OSError) else None
-        if mapped is not None:
-            err(f"error: {mapped.render()}")
-            return mapped.exit_code
-        if type(exc).__name__ in {"LinAlgError", "FloatingPointError"}:
-            err(f"error: numerical failure: {exc}\n    fix: look for an extreme or degenerate value in the mission or "
-                "the URDF (a zero mass, an inertia off by orders of magnitude); --debug shows where it happened")
-            return EXIT_NUMERICAL
-        err("error: internal error (a bug in sms; please report it, run with --debug for the traceback): "
-            f"{type(exc).__name__}: {exc}")
-        return EXIT_INTERNAL
+        code, message = failure(exc, outputs)
+        err(f"error: {message}")
+        return code
 
 
 def run_guarded(fn: Callable[[], int | None], outputs: Sequence[Output] = ()) -> None:

@@ -2,7 +2,8 @@
 
 Exit codes (documented in the README and ``sms --help``):
   0 ok · 1 requirements not met · 2 invalid input or usage · 3 numerical failure
-  (infeasible synthesis, diverged simulation, singular model) · 130 interrupted.
+  (infeasible synthesis, diverged simulation, singular model) or the disk is full ·
+  4 internal error (a bug in sms) · 130 interrupted (SIGINT or SIGTERM).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ EXIT_OK = 0
 EXIT_REQUIREMENTS = 1
 EXIT_INPUT = 2
 EXIT_NUMERICAL = 3
+EXIT_INTERNAL = 4  # a bug in sms: the only exit code a user's input must never cause
 EXIT_INTERRUPTED = 130
 
 

@@ -409,3 +409,21 @@ def test_check_and_report_of_a_killed_or_interrupted_run_fail_and_say_so(tmp_pat
     r = run_cli("report", out, "-o", tmp_path / "report.html")
     assert r.exit_code == 0, r.output
     assert f"the run was {word}: results incomplete" in (tmp_path / "report.html").read_text()
+
+
+@pytest.mark.parametrize("error, code, words", [
+    (OSError(errno.ENOSPC, "No space left on device"), 3, "the disk is full"),
+    (PermissionError(errno.EACCES, "Permission denied", "/somewhere/x.csv"), 2, "permission denied"),
+])
+def test_file_system_failure_inside_sms_run_is_the_contract_code(tmp_path, monkeypatch, error, code, words):
+    """sms run maps a stage's file-system failure as every command does (one mapping: sms_cli.failures)."""
+    import sms_cli.orbit.stage as budget_stage
+
+    def broken(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(budget_stage, "run_budget", broken)
+    r = run_cli("run", MISSIONS / "hipparcos_leo.yaml", "-o", tmp_path / "r", "--no-report")
+    assert r.exit_code == code, r.output
+    assert words in r.output
+    assert not re.search(r"\b\w+Error\b", r.output), r.output

@@ -20,11 +20,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from sms_cli.errors import EXIT_NUMERICAL, EXIT_OK, EXIT_REQUIREMENTS, SmsError
+from sms_cli.errors import EXIT_OK, EXIT_REQUIREMENTS, SmsError
+from sms_cli.failures import failure
 from sms_cli.results import ResultsDir
 from sms_cli.run.stages import STAGES, call_stage
 
-EXIT_INTERNAL = 4
 #: sections `sms run` rewrites (stale ones from an earlier run are dropped first)
 OWNED_SECTIONS = ("run", "requirements") + tuple(s.section for s in STAGES)
 
@@ -55,13 +55,9 @@ class RunSummary:
 
 
 def _failure(exc: BaseException, debug: bool) -> tuple[int, str]:
-    if isinstance(exc, SmsError):
-        return exc.exit_code, exc.render()
-    if debug:
+    if debug and not isinstance(exc, SmsError):
         raise exc
-    if type(exc).__name__ in {"LinAlgError", "FloatingPointError"}:
-        return EXIT_NUMERICAL, f"numerical failure: {type(exc).__name__}: {exc}"
-    return EXIT_INTERNAL, f"internal error (a bug in sms; run with --debug): {type(exc).__name__}: {exc}"
+    return failure(exc)
 
 
 def _fresh(rd: ResultsDir) -> None:
