@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,11 @@ MISSIONS = ROOT / "missions"
 @pytest.fixture(scope="session")
 def runner() -> CliRunner:
     return CliRunner()
+
+
+#: What the error contract forbids in text shown to a user: a Python exception class name, a
+#: traceback, a source location of sms's own code.
+EXCEPTION_TEXT = re.compile(r"\b[A-Za-z_]\w*(?:Error|Exception|Warning|Interrupt)\b|Traceback|\.py:\d+")
 
 
 def run_cli(*args: str):

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import pytest
 
-from conftest import MISSIONS, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, run_cli
 
 SMS = Path(sys.executable).with_name("sms")
 CALDERA = MISSIONS / "caldera_smallsat.yaml"
-_EXC_NAME = re.compile(r"\b[A-Z]\w*(?:Error|Exception|Warning)\b|Traceback")
+_EXC_NAME = EXCEPTION_TEXT
 
 
 def _files(folder: Path) -> set[Path]:

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from conftest import MISSIONS, ROOT, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, ROOT, run_cli
 
 URDF = (ROOT / "robots" / "caldera_smallsat.urdf").read_text()
-EXCEPTION_NAMES = re.compile(r"\b(\w+Error|\w+Exception|Traceback)\b")
+EXCEPTION_NAMES = EXCEPTION_TEXT
 FIRST_MASS = re.search(r'<mass value="([^"]+)"/>', URDF).group(0)
 FIRST_IXX = re.search(r'ixx="([^"]+)"', URDF).group(0)
 

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from conftest import MISSIONS, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, run_cli
 
-EXC_NAME = re.compile(r"\b[A-Z][A-Za-z]*(Error|Exception|Warning)\b|Traceback|\.py:\d+")
+EXC_NAME = EXCEPTION_TEXT
 
 
 def assert_clean(r, code: int, *texts: str | Path) -> None:

@@ -25,9 +25,9 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from conftest import MISSIONS, ROOT, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, ROOT, run_cli
 
-EXCEPTION_NAME = re.compile(r"Traceback|\b[A-Z][A-Za-z]*(Error|Exception|Interrupt)\b")
+EXCEPTION_NAME = EXCEPTION_TEXT
 
 
 def mission(tmp_path: Path, name: str, text: str) -> Path:

@@ -9,16 +9,15 @@ from __future__ import annotations
 
 import errno
 import os
-import re
 import stat
 from pathlib import Path
 
 import pytest
 
-from conftest import MISSIONS, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, run_cli
 
 LEO = MISSIONS / "hipparcos_leo.yaml"
-EXC_NAME = re.compile(r"\b[A-Z][A-Za-z]*(Error|Exception|Warning)\b|Traceback|\.py:\d+")
+EXC_NAME = EXCEPTION_TEXT
 
 
 def assert_clean(r, code: int, *names: str | Path) -> None:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 import signal
 import subprocess
 import sys
@@ -24,7 +23,6 @@ import numpy as np
 import pytest
 from mcap.reader import NonSeekingReader, make_reader
 
-from sms_cli.errors import InputError
 from sms_cli.sim.foxglove_schemas import FRAME_TRANSFORM
 from sms_cli.sim.frames import RelativePoses
 from sms_cli.sim.inspect import inspect_recording

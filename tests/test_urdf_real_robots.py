@@ -9,7 +9,6 @@ definite. A property test holds sms to it over generated trees.
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +17,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import run_cli
+from conftest import EXCEPTION_TEXT, run_cli
 
-EXCEPTION_NAMES = re.compile(r"\b(\w+Error|\w+Exception|Traceback)\b")
+EXCEPTION_NAMES = EXCEPTION_TEXT
 
 
 # ---------------------------------------------------------------- URDF text builders
