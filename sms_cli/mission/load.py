@@ -20,7 +20,7 @@ from sms_cli.errors import InputError, Problem
 from sms_cli.inputs import absolute
 from sms_cli.mission.schema import Mission
 from sms_cli.mission.units import SpecError, clip
-from sms_cli.mission.yaml_source import SourceMap, load_yaml
+from sms_cli.mission.yaml_source import SourceMap, load_yaml, load_yaml_text
 
 
 @dataclass
@@ -169,9 +169,15 @@ def _load_tree(path: Path, chain: tuple[Path, ...] = (), named_at=None) -> tuple
     """A mission file's data with its ``extends`` chain applied (parents first); ``named_at`` is
     the ``extends:`` that named this file."""
     data, smap = load_yaml(path, named_at, "extends" if named_at else "mission file")
+    return _extend(path, data, smap, chain)
+
+
+def _extend(path: Path, data: Any, smap: SourceMap, chain: tuple[Path, ...] = ()) -> tuple[dict, SourceMap]:
+    """A mission's data (read from ``path``, or written as if it were) with its ``extends`` chain applied."""
     if not isinstance(data, dict):
         raise InputError(problems=[Problem("a mission file is a mapping (key: value) at the top level",
                                            smap.locate(()), hint="start from one of the files in missions/")])
+    data = dict(data)  # the caller's mapping (load_mission_dict) keeps its 'extends'
     parent_ref = data.pop("extends", None)
     if parent_ref is None:
         return data, smap
@@ -191,12 +197,66 @@ def load_mission(path: Path | str) -> LoadedMission:
     listing every problem found."""
     path = absolute(path) if os.path.exists(path) else Path(path)
     data, smap = _load_tree(path)
+    return _validated(path, data, smap, smap.text)
+
+
+def _validated(path: Path, data: dict, smap: SourceMap, text: str) -> LoadedMission:
     try:
         mission = Mission.model_validate(data)
     except ValidationError as exc:
         problems = validation_problems(exc, Mission, smap)
         raise InputError(f"{path}: {len(problems)} problem(s) in the mission file", problems) from None
-    return LoadedMission(mission, path, smap, smap.text)
+    return LoadedMission(mission, path, smap, text)
+
+
+def _virtual_path(base_dir: Path | str | None, name: str) -> Path:
+    """Where a mission that is not a file "lives": ``name`` in ``base_dir`` (default: the current folder).
+    Its relative paths resolve against that folder and its messages name that path."""
+    return absolute(Path.cwd() if base_dir is None else base_dir) / name
+
+
+def load_mission_text(text: str, base_dir: Path | str | None = None, name: str = "<string>") -> LoadedMission:
+    """Validate a mission given as YAML text, as ``load_mission`` does a file.
+
+    Paths inside it (``robot.urdf``, ``extends``) resolve against ``base_dir`` (default: the current
+    folder); errors name ``base_dir/name`` with the line and column in ``text``. Raises ``InputError``.
+    """
+    path = _virtual_path(base_dir, name)
+    data, smap = load_yaml_text(text, path)
+    data, smap = _extend(path, data, smap)
+    return _validated(path, data, smap, text)
+
+
+def _claim_paths(smap: SourceMap, value: Any, at: tuple[Any, ...]) -> None:
+    """Mark every key path of ``value`` as written by ``smap``'s mission (no line: position 0), so that
+    an error in a value the mapping gives is not reported at the file it ``extends``."""
+    smap.values[at] = (0, 0)
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for k, v in items:
+        if isinstance(value, dict):
+            smap.keys[at + (k,)] = (0, 0)
+        _claim_paths(smap, v, at + (k,))
+
+
+def load_mission_dict(data: dict[str, Any], base_dir: Path | str | None = None, name: str = "<dict>") -> LoadedMission:
+    """Validate a mission given as a mapping (what ``yaml.safe_load`` of a mission file returns).
+
+    Paths inside it resolve against ``base_dir`` (default: the current folder); errors name the
+    field path (``simulation.phases.0.duration``), there being no line. ``data`` is not modified.
+    The mission's text (``LoadedMission.text``, stored in recordings) is ``data`` as YAML.
+    Raises ``InputError``.
+    """
+    import yaml
+
+    path = _virtual_path(base_dir, name)
+    smap = SourceMap(path)
+    _claim_paths(smap, data, ())
+    tree, smap = _extend(path, data, smap)
+    try:
+        text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True)
+    except yaml.YAMLError:  # values YAML cannot represent (numpy scalars) are refused by validation, or shown as text
+        text = repr(data)
+    return _validated(path, tree, smap, text)
 
 
 def mission_json_schema() -> dict[str, Any]:
