@@ -17,6 +17,9 @@ from sms_cli.errors import InputError, Location, Problem
 from sms_cli.orbit.budget import ScenarioResult, evaluate_scenario
 from sms_cli.results import ResultsDir, atomic_path, write_text_atomic
 
+#: the files ``write_budget`` writes next to results.json
+ARTIFACTS = ("budget.csv", "budget_mass.png", "budget_dv.png")
+
 CSV_COLUMNS = [
     "scenario", "index", "phase", "name", "type", "propulsion", "dv_impulsive_m_s", "dv_factor", "dv_m_s",
     "mass_before_kg", "propellant_kg", "mass_after_kg", "attached_mass_after_kg", "burn_duration_s",
@@ -105,7 +108,7 @@ def budget_dict(results: list[ScenarioResult], spec) -> dict[str, Any]:
                            "duration_model": p.duration_model, "dv_margins": dict(p.dv_margins)}
                        for n, p in spec.propulsion.items()},
         "scenarios": [scenario_dict(r) for r in results],
-        "artifacts": ["budget.csv", "budget_mass.png", "budget_dv.png"],
+        "artifacts": [],  # the files write_budget writes
     }
     if len(results) == 1:
         out["totals"] = out["scenarios"][0]["totals"]
@@ -249,8 +252,9 @@ def format_budget(data: dict[str, Any]) -> str:
 # ------------------------------------------------------------------ entry point
 
 
-def run_budget(loaded_mission, results_dir: Path | str | ResultsDir) -> dict[str, Any]:
-    """Evaluate the mission's ``budget:`` section; write results.json, budget.csv and the plots."""
+def compute_budget(loaded_mission) -> dict[str, Any]:
+    """Evaluate the mission's ``budget:`` section; the ``budget`` section of results.json (SI units,
+    units in the key names), with ``artifacts`` empty: nothing is written."""
     spec = loaded_mission.mission.budget
     if spec is None:
         raise InputError(problems=[Problem(
@@ -265,10 +269,20 @@ def run_budget(loaded_mission, results_dir: Path | str | ResultsDir) -> dict[str
     results = [evaluate_scenario(spec, k, locate) for k in ks]
     if spec.scenarios is None:
         results[0].name = loaded_mission.mission.name
-    data = budget_dict(results, spec)
+    return budget_dict(results, spec)
+
+
+def write_budget(data: dict[str, Any], results_dir: Path | str | ResultsDir) -> dict[str, Any]:
+    """Write budget.csv, the plots and the ``budget`` section of results.json; returns ``data`` with its artifacts."""
     rd = results_dir if isinstance(results_dir, ResultsDir) else ResultsDir(results_dir)
     write_text_atomic(rd.file("budget.csv"), budget_csv(data))
     plot_mass(data, rd.file("budget_mass.png"))
     plot_dv(data, rd.file("budget_dv.png"))
+    data["artifacts"] = list(ARTIFACTS)
     rd.update("budget", data)
     return data
+
+
+def run_budget(loaded_mission, results_dir: Path | str | ResultsDir) -> dict[str, Any]:
+    """Evaluate the mission's ``budget:`` section; write results.json, budget.csv and the plots."""
+    return write_budget(compute_budget(loaded_mission), results_dir)
