@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sms_cli.analysis.modal import LinearModel
 from sms_cli.analysis.schema import AnalysisSpec
 from sms_cli.errors import InputError, Problem
 from sms_cli.results import ResultsDir
@@ -40,8 +41,9 @@ def _modal_configuration(sm, conf: dict, loaded, i: int) -> np.ndarray:
     return q
 
 
-def run_modal(sm, spec: AnalysisSpec, out: Path, loaded=None) -> list[dict]:
-    """Linear models and coupled modes at each configuration of ``analysis.modal``."""
+def run_modal(sm, spec: AnalysisSpec, out: Path | None, loaded=None) -> list[tuple[dict, LinearModel]]:
+    """Linear models and coupled modes at each configuration of ``analysis.modal``: per configuration
+    its ``analysis.modal`` entry and its model, exported as ``out/modal_<k>.npz|.mat`` when ``out`` is given."""
     sm.require_dynamics("the modal analysis (analysis.modal)")
     from sms_cli.analysis.modal import coupled_modes, export, linearize
 
@@ -50,17 +52,38 @@ def run_modal(sm, spec: AnalysisSpec, out: Path, loaded=None) -> list[dict]:
     for i, conf in enumerate(spec.modal.configurations):
         q = _modal_configuration(sm, conf, loaded, i)
         lin = linearize(sm, q, spec.modal.joints)
-        files = export(lin, out / f"modal_{i}", spec.modal.export)
-        results.append({
+        files = export(lin, out / f"modal_{i}", spec.modal.export) if out is not None else []
+        results.append(({
             "configuration": {k: float(v) for k, v in conf.items()}, "joints": spec.modal.joints,
             "states": len(lin.states), "inputs": lin.inputs, "equilibrium_residual": lin.residual,
             "modes": coupled_modes(lin), "clamped_frequencies_rad_s": clamped,
-            "files": [p.name for p in files]})
+            "files": [p.name for p in files]}, lin))
     return results
 
 
 def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, progress: bool | None = None) -> dict:
     """Run the study of a loaded mission; return the ``analysis`` section written to results.json."""
+    return analyze_into(loaded, results_dir, plots=plots, progress=progress)[0]
+
+
+def analyze_into(loaded, results_dir: Path | str, *, plots: bool | None = None,
+                 progress: bool | None = None) -> tuple[dict, list[LinearModel]]:
+    """``analyze_mission`` writing its files and the ``analysis`` section into ``results_dir``."""
+    out = Path(results_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    section, models = analyze_mission(loaded, out, plots=plots, progress=progress)
+    ResultsDir(out).update("analysis", section)
+    return section, models
+
+
+def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = None,
+                    progress: bool | None = None) -> tuple[dict, list[LinearModel]]:
+    """The study of a loaded mission: its ``analysis`` section and the linear models of ``analysis.modal``.
+
+    With ``out`` (an existing folder) the per-sample CSV tables are streamed there as the samples are
+    evaluated (a study may not fit in memory), then the plots and the modal exports are written and
+    listed in ``artifacts``; without it nothing is written and ``artifacts`` is empty. results.json
+    is not touched (``run_analysis`` writes the section)."""
     from sms_cli.analysis import plots as P
     from sms_cli.analysis.sampling import Progress
     from sms_cli.analysis.summary import Comparison, StudyStats
@@ -69,8 +92,6 @@ def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, 
     from sms_cli.model import compile_system
 
     spec = loaded.mission.analysis or AnalysisSpec()
-    out = Path(results_dir)
-    out.mkdir(parents=True, exist_ok=True)
     sm = compile_system(loaded)
     section: dict = {"defaults_used": loaded.mission.analysis is None}
     if not sm.arm:
@@ -87,7 +108,7 @@ def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, 
     t0 = time.perf_counter()
     tables = {}
     with contextlib.ExitStack() as stack:
-        if spec.table:
+        if spec.table and out is not None:
             for v in variants:
                 tables[v.name] = stack.enter_context(csv_table(out / f"analysis_{v.name}.csv", qcols + v.kernel.columns))
         done = 0
@@ -129,14 +150,16 @@ def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, 
     for name, comp in comps.items():
         section["comparison"][name] = comp.summary()
 
-    if spec.plots if plots is None else plots:
+    if out is not None and (spec.plots if plots is None else plots):
         section["artifacts"] += [p.name for p in _plots(P, out, variants, stats, loaded.mission.name)]
+    models = []
     if spec.modal is not None:
-        section["modal"] = run_modal(sm, spec, out, loaded)
+        modal = run_modal(sm, spec, out, loaded)
+        section["modal"] = [m for m, _ in modal]
+        models = [lin for _, lin in modal]
         for m in section["modal"]:
             section["artifacts"] += m["files"]
-    ResultsDir(out).update("analysis", section)
-    return section
+    return section, models
 
 
 def _plots(P, out: Path, variants, stats, mission: str) -> list[Path]:
