@@ -13,13 +13,18 @@ Laws: ``lmi`` (seed 004 NDI + observer, acceleration gains per actuator), ``pd``
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from sms_cli.errors import InputError, NumericalError, Problem
 from sms_cli.results import ResultsDir
+
+if TYPE_CHECKING:
+    from sms_cli.synthesis.gains_io import GainsFile
+    from sms_cli.synthesis.regions import PoleRegion
 
 AXES = ["x", "y", "z"]
 
@@ -44,8 +49,30 @@ def _c(z) -> list[list[float]]:
     return [[float(np.real(v)), float(np.imag(v))] for v in np.asarray(z, dtype=complex)]
 
 
+@dataclass
+class Synthesized:
+    """What a synthesis computed: the ``synthesis`` section (``files`` empty), the gains file's
+    content, the closed-loop poles per linearisation (rad/s, complex) and the requested pole regions."""
+
+    section: dict[str, Any]
+    gains: GainsFile
+    poles: list[dict[str, Any]]
+    regions: dict[str, PoleRegion]
+
+
 def run_synthesis(loaded, out_dir: Path | str, plots: bool = True) -> dict[str, Any]:
     """Run the mission's synthesis; return the ``synthesis`` section written to results.json."""
+    out = Path(out_dir)
+    done = synthesize_mission(loaded, on_infeasible=lambda section: ResultsDir(out).update("synthesis", section))
+    write_synthesis(done, loaded.mission.name, out, plots)
+    check_verified(done.section)
+    return done.section
+
+
+def synthesize_mission(loaded, on_infeasible: Callable[[dict], None] | None = None) -> Synthesized:
+    """Compile the mission and compute its gains, verified; nothing is written. An infeasible LMI
+    raises NumericalError after ``on_infeasible`` got the section that says so; a failed
+    verification is returned as such (``check_verified`` raises for it)."""
     spec = loaded.mission.synthesis
     if spec is None:
         raise InputError(f"{loaded.path}: the mission has no 'synthesis:' section",
@@ -53,40 +80,51 @@ def run_synthesis(loaded, out_dir: Path | str, plots: bool = True) -> dict[str, 
                                   hint="add e.g. 'synthesis: {law: pd, pd: {bandwidth: 0.1 rad/s, damping: 0.9}}'")])
     from sms_cli.model import compile_system
 
-    out = Path(out_dir)
     sm = compile_system(loaded)
     sm.require_dynamics("gain synthesis")
     t0 = time.perf_counter()
     if spec.law == "lmi":
-        section, gains, poles, regions = _run_lmi(sm, spec, out)
+        section, gains, poles, regions = _run_lmi(sm, spec, on_infeasible)
     else:
         section, gains, poles, regions = _run_classical(sm, spec)
     section["total_time_s"] = time.perf_counter() - t0
+    section["files"] = {}  # write_synthesis names what it writes
     gains.mission = loaded.mission.name
+    return Synthesized(section, gains, poles, regions)
+
+
+def write_synthesis(done: Synthesized, mission: str, out: Path, plots: bool = True) -> dict[str, Any]:
+    """Write gains.yaml, the pole map (``plots``) and the ``synthesis`` section with its ``files``."""
     from sms_cli.synthesis.gains_io import write_gains
 
-    files = {"gains": str(write_gains(out / "gains.yaml", gains).name)}
+    section = done.section
+    files = {"gains": str(write_gains(out / "gains.yaml", done.gains).name)}
     if plots:
         from sms_cli.synthesis.plots import plot_pole_map
 
-        plot_pole_map(poles, regions, out / "synthesis_poles.png", f"{loaded.mission.name}: {spec.law} closed-loop poles")
+        plot_pole_map(done.poles, done.regions, out / "synthesis_poles.png", f"{mission}: {section['law']} closed-loop poles")
         files["pole_map"] = "synthesis_poles.png"
     section["files"] = files
     ResultsDir(out).update("synthesis", section)
+    return section
+
+
+def check_verified(section: dict[str, Any], written: bool = True) -> None:
+    """NumericalError (exit 3) naming the failed checks and what to relax, when verification failed
+    (``written``: gains.yaml was written, marked unverified)."""
     if not section["verification"]["passed"]:
         failed = [c for c in section["verification"]["checks"] if not c["passed"]]
         raise NumericalError(
-            f"verification of the {spec.law} gains failed ({len(failed)} check(s)); gains.yaml is written but "
-            "marked unverified",
+            f"verification of the {section['law']} gains failed ({len(failed)} check(s)); "
+            + ("gains.yaml is written but marked unverified" if written else "the gains are unverified"),
             [Problem(f"{c['name']}: {c['detail']}", field="synthesis", hint=HINTS.get(c["name"], "")) for c in failed])
-    return section
 
 
 # ---------------------------------------------------------------------------------------
 # LMI (seed 004)
 
 
-def _run_lmi(sm, spec, out: Path):
+def _run_lmi(sm, spec, on_infeasible: Callable[[dict], None] | None):
     from sms_cli.synthesis.build import lmi_setup
     from sms_cli.synthesis.gains_io import ControllerGains, GainsFile, ObserverGains
     from sms_cli.synthesis.lmi import synthesize
@@ -99,7 +137,8 @@ def _run_lmi(sm, spec, out: Path):
     try:
         res = synthesize(req)
     except NumericalError as exc:
-        ResultsDir(out).update("synthesis", {"law": "lmi", "status": "infeasible", "message": exc.render()})
+        if on_infeasible is not None:
+            on_infeasible({"law": "lmi", "status": "infeasible", "message": exc.render()})
         raise
     t1 = time.perf_counter()
     ver = verify_lmi(req, res)
