@@ -1,4 +1,5 @@
-"""``sms simulate``: compile, simulate, record MCAP, write metrics and plots."""
+"""``sms simulate``: compile, simulate, record MCAP, write metrics and plots (``record_simulation``),
+or simulate in memory without recording or writing (``simulate_mission``)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,17 @@ import errno
 import io
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sms_cli.errors import InputError, Location, NumericalError, Problem
 from sms_cli.mission.load import LoadedMission
 from sms_cli.results import ResultsDir, write_text_atomic
+
+if TYPE_CHECKING:
+    from sms_cli.model.system import SystemModel
+    from sms_cli.sim.engine import SimResult
 
 
 def versions() -> dict[str, str]:
@@ -40,30 +46,90 @@ def _trace_csv(trace: dict, sm) -> str:
     return buf.getvalue()
 
 
-def run_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None = None,
-                   progress: bool | None = None) -> dict:
-    """Simulate the mission; returns the ``simulate`` section written to results.json.
+class SimulationDiverged(NumericalError):
+    """The simulation diverged (exit 3); ``section`` and ``run`` (the ``SimResult``) hold what ran."""
 
-    What each ending leaves: diverged → everything written, then NumericalError (exit 3).
-    SIGINT/SIGTERM (KeyboardInterrupt, exit 130) → the recording finalised, and the section
-    (status ``interrupted``, the time reached), CSV and plots of what ran. A full disk → the
-    recording cut back to its last whole chunk (readable), the section says so, DiskFull (exit 3).
-    Results of another mission in ``out_dir`` are not mixed in (``ResultsDir.writing``)."""
+    def __init__(self, message: str, section: dict, run: SimResult):
+        super().__init__(message)
+        self.section = section
+        self.run = run
+
+
+def _prepared(loaded: LoadedMission) -> SystemModel:
+    """The compiled model of a mission with a valid ``simulation:`` section (InputError otherwise)."""
     from sms_cli.model import compile_system
     from sms_cli.sim.validate import validate_simulation
 
-    spec = loaded.mission.simulation
-    if spec is None:
+    if loaded.mission.simulation is None:
         raise InputError(problems=[Problem("this mission has no 'simulation:' section", loaded.source.locate(()),
                                            hint="add simulation: {dt, control_rate, attitude, arm, phases: [...]}")])
     sm = compile_system(loaded)
     validate_simulation(sm, loaded)  # a bad name is exit 2 before a recording exists
+    return sm
+
+
+def _base(loaded: LoadedMission) -> dict:
+    return {"mission": loaded.mission.name, "mission_file": str(loaded.path)}
+
+
+def _section(result: SimResult, base: dict, files: dict) -> dict:
+    """The ``simulate`` section of a run (whole, or what ran of it)."""
+    return {
+        "status": result.status, "divergence": result.divergence or None, "t_end_s": result.t_end, "steps": result.steps,
+        "overall": result.overall, "phases": result.phases, "conservation": result.conservation, "timing": result.timing,
+        **base, "files": files,
+    }
+
+
+def _diverged_message(result: SimResult, kept: str) -> str:
+    return (f"the simulation diverged at t = {result.t_end:.4g} s: {result.divergence}. {kept}"
+            "reduce dt, lower the gains or check the model")
+
+
+def run_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None = None,
+                   progress: bool | None = None) -> dict:
+    """Simulate the mission; returns the ``simulate`` section written to results.json (see
+    ``record_simulation``)."""
+    return record_simulation(loaded, out_dir, mcap_path, progress)[0]
+
+
+def record_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None = None,
+                      progress: bool | None = None, gains_dir: Path | None = None) -> tuple[dict, SimResult]:
+    """Simulate the mission, recording ``simulation.mcap`` (or ``mcap_path``) and writing the CSV, the
+    plots and the ``simulate`` section; returns the section and the run (metrics and trace arrays).
+
+    What each ending leaves: diverged → everything written, then SimulationDiverged (a NumericalError,
+    exit 3). SIGINT/SIGTERM (KeyboardInterrupt, exit 130) → the recording finalised, and the section
+    (status ``interrupted``, the time reached), CSV and plots of what ran. A full disk → the
+    recording cut back to its last whole chunk (readable), the section says so, DiskFull (exit 3).
+    Results of another mission in ``out_dir`` are not mixed in (``ResultsDir.writing``). gains.yaml
+    (``attitude: from_gains``, the NDI) is read from ``gains_dir``, by default ``out_dir``."""
+    sm = _prepared(loaded)
     results = ResultsDir(out_dir)
     with results.writing(loaded.mission.name, loaded.path):
-        return _simulate(loaded, sm, results, Path(mcap_path) if mcap_path else results.file("simulation.mcap"), progress)
+        return _simulate(loaded, sm, results, Path(mcap_path) if mcap_path else results.file("simulation.mcap"), progress,
+                         Path(gains_dir) if gains_dir is not None else results.path)
 
 
-def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path, progress: bool | None) -> dict:
+def simulate_mission(loaded: LoadedMission, progress: bool | None = False,
+                     gains_dir: Path | None = None) -> tuple[dict, SimResult]:
+    """Simulate the mission without recording and without writing anything; returns the
+    ``simulate`` section (``files`` empty) and the run (metrics and trace arrays). ``gains_dir`` is
+    where gains.yaml is read for ``attitude: from_gains`` and the NDI. A divergence raises
+    SimulationDiverged (exit 3) with what ran; Ctrl-C raises KeyboardInterrupt at once."""
+    from sms_cli.sim.engine import Simulation
+
+    sm = _prepared(loaded)
+    result = Simulation(sm, loaded.mission.simulation, None, progress, results_dir=gains_dir,
+                        mission_dir=loaded.path.parent).run()
+    section = _section(result, _base(loaded), {})
+    if result.status == "diverged":
+        raise SimulationDiverged(_diverged_message(result, ""), section, result)
+    return section, result
+
+
+def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path,
+              progress: bool | None, gains_dir: Path) -> tuple[dict, SimResult]:
     from sms_cli.model.summary import model_summary
     from sms_cli.sim.engine import Simulation
     from sms_cli.sim.recorder import McapRecorder
@@ -74,11 +140,11 @@ def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path, p
                        urdf_text=sm.urdf_text, versions=versions(), record_rate_hz=spec.record_rate)
     links = list(sm.link_parents)
     rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
-    base = {"mission": loaded.mission.name, "mission_file": str(loaded.path)}
+    base = _base(loaded)
     result = None
     try:
         with rec:  # once recording, a signal is held until the outputs are written
-            result = Simulation(sm, spec, rec, progress, results_dir=results.path, mission_dir=loaded.path.parent).run()
+            result = Simulation(sm, spec, rec, progress, results_dir=gains_dir, mission_dir=loaded.path.parent).run()
             rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
             section = _write_outputs(results, result, sm, spec, mcap_path, base)
     except KeyboardInterrupt:
@@ -95,10 +161,9 @@ def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path, p
               f"the recording in {mcap_path}", file=sys.stderr, flush=True)
         raise KeyboardInterrupt
     if result.status == "diverged":
-        raise NumericalError(f"the simulation diverged at t = {result.t_end:.4g} s: {result.divergence}. "
-                             f"What ran is in {mcap_path} and {results.file('results.json')}; "
-                             "reduce dt, lower the gains or check the model")
-    return section
+        raise SimulationDiverged(_diverged_message(result, f"What ran is in {mcap_path} and {results.file('results.json')}; "),
+                                 section, result)
+    return section, result
 
 
 def _write_outputs(results: ResultsDir, result, sm, spec, mcap_path: Path, base: dict) -> dict:
@@ -107,11 +172,7 @@ def _write_outputs(results: ResultsDir, result, sm, spec, mcap_path: Path, base:
 
     write_text_atomic(results.file("simulation.csv"), _trace_csv(result.trace, sm))
     plots = plot_simulation(result.trace, sm, [p.name for p in spec.phases], results.path)
-    section = {
-        "status": result.status, "divergence": result.divergence or None, "t_end_s": result.t_end, "steps": result.steps,
-        "overall": result.overall, "phases": result.phases, "conservation": result.conservation, "timing": result.timing,
-        **base, "files": {"mcap": str(mcap_path), "csv": "simulation.csv", "plots": [p.name for p in plots]},
-    }
+    section = _section(result, base, {"mcap": str(mcap_path), "csv": "simulation.csv", "plots": [p.name for p in plots]})
     results.update("simulate", section)
     return section
 
