@@ -65,24 +65,47 @@ class SimResult:
 
 
 class Progress:
-    """A one-line progress display on stderr (only when stderr is a terminal)."""
+    """A one-line progress display on stderr (only when stderr is a terminal).
+
+    The simulated time is a sum of steps, so it ends a few ulps short of the total: the percentage
+    allows for that, ``finish`` shows a completed run as 100 % (also one whose last phase settled
+    early) and ``close`` leaves the last time reached on the line."""
 
     def __init__(self, total: float, enabled: bool | None = None):
         self.total = total
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.last = -1
+        self.t = 0.0
+        self._shown = None  # the (t, %) on the line
+
+    def percent(self, t: float) -> int:
+        if self.total <= 0:
+            return 100
+        return max(0, min(100, int(100 * t / self.total + 1e-6)))  # 1e-6 %: round-off of the summed steps
 
     def update(self, t: float) -> None:
+        self.t = t
         if not self.enabled:
             return
-        pct = int(100 * t / self.total) if self.total > 0 else 100
+        pct = self.percent(t)
         if pct != self.last:
-            self.last = pct
-            sys.stderr.write(f"\r  simulating {t:9.2f} / {self.total:.2f} s  [{'#' * (pct // 4):<25}] {pct:3d}%")
-            sys.stderr.flush()
+            self._draw(t, pct)
+
+    def finish(self, t: float) -> None:
+        """The run completed at ``t``: 100 %."""
+        self.t = t
+        if self.enabled:
+            self._draw(t, 100)
+
+    def _draw(self, t: float, pct: int) -> None:
+        self.last, self._shown = pct, (t, pct)
+        sys.stderr.write(f"\r  simulating {t:9.2f} / {self.total:.2f} s  [{'#' * (pct // 4):<25}] {pct:3d}%")
+        sys.stderr.flush()
 
     def close(self) -> None:
         if self.enabled:
+            if self._shown is None or self._shown[0] != self.t:
+                self._draw(self.t, self.percent(self.t))
             sys.stderr.write("\n")
 
 
@@ -304,6 +327,7 @@ class Simulation:
                 phase_spans.append((ip, t_phase0, t))
                 q_att_ref = att.at(phase.duration).quat if phase.attitude is not None else q_att_ref
                 q_arm_ref = q_track if phase.end_effector is not None else joints.final
+            self.progress.finish(t)
         except Diverged as exc:
             status, why = "diverged", str(exc)
             if self.rec is not None:
