@@ -8,6 +8,9 @@ has one, else in the metric's own unit.
 
 from __future__ import annotations
 
+import re
+import shutil
+import textwrap
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -116,21 +119,81 @@ def evaluate_all(reqs: list[RequirementSpec], results: dict[str, Any]) -> list[V
     return [evaluate(r, results) for r in reqs]
 
 
-def format_verdicts(verdicts: list[Verdict]) -> str:
-    """A plain-text table: requirement, metric, value, bound, status."""
+#: break points of a table cell: after the spaces of a text, after the dots of a metric path
+_WORDS = re.compile(r"\S+\s*")
+_PATH = re.compile(r"[^.]*\.|[^.]+")
+
+
+def terminal_width(default: int = 100) -> int:
+    """Columns to print in: ``COLUMNS``, else the terminal's width, else ``default`` (not a terminal)."""
+    return max(40, shutil.get_terminal_size((default, 24)).columns)
+
+
+def _wrap(text: str, width: int, breaks: re.Pattern) -> list[str]:
+    """``text`` in lines of at most ``width`` characters, cut only at ``breaks`` (a longer piece stays whole)."""
+    lines, cur = [], ""
+    for piece in breaks.findall(text):
+        if cur and len((cur + piece).rstrip()) > width:
+            lines.append(cur.rstrip())
+            cur = piece
+        else:
+            cur += piece
+    return lines + [cur.rstrip()]
+
+
+def text_table(head: list[str], rows: list[list[str]], width: int = 10**6, breaks: list[re.Pattern] | None = None,
+               shrink: tuple[int, ...] = (), indent: str = "") -> tuple[list[str], list[list[str]]]:
+    """(header lines, lines of each row) of a table at most ``width`` characters wide: the columns
+    ``shrink`` lists give up width in that order, down to their longest unbreakable piece, and their
+    cells wrap at ``breaks`` (words, or a metric path's dots): a number is never cut. The first
+    column is indented by ``indent``. Without ``breaks``, every cell breaks at its spaces."""
+    cols = range(len(head))
+    breaks = breaks or [_WORDS] * len(head)
+    shown = [[indent + r[0]] + r[1:] for r in [head] + rows]
+    widths = [max(len(r[i]) for r in shown) for i in cols]
+    least = [max([len(head[i]) + (len(indent) if i == 0 else 0)]
+                 + [max(len(p.rstrip()) for p in breaks[i].findall(r[i]) or [""]) + (len(indent) if i == 0 else 0)
+                    for r in rows]) for i in cols]
+    for i in shrink:
+        excess = sum(widths) + 2 * (len(head) - 1) - width
+        if excess <= 0:
+            break
+        widths[i] -= min(excess, widths[i] - least[i])
+
+    def block(row: list[str]) -> list[str]:
+        cells = [[indent + c for c in _wrap(row[0], widths[0] - len(indent), breaks[0])]]
+        cells += [_wrap(row[i], widths[i], breaks[i]) for i in cols if i]
+        return ["  ".join((c[k] if k < len(c) else "").ljust(w) for c, w in zip(cells, widths)).rstrip()
+                for k in range(max(map(len, cells)))]
+
+    return block(head) + ["  ".join("-" * w for w in widths)], [block(r) for r in rows]
+
+
+def format_verdicts(verdicts: list[Verdict], width: int | None = None) -> str:
+    """A plain-text table: requirement, metric, value, bound, status, at most ``width`` columns wide
+    (default: the terminal's, 100 when not a terminal). When the five columns do not fit, each
+    requirement's name gets a line of its own above its metric, value, bound and status, and the
+    metric paths wrap at their dots; numbers are never cut."""
     if not verdicts:
         return "no requirements\n"
-    head = ["requirement", "metric", "value", "bound", "status"]
-    rows = []
+    width = width or terminal_width()
+    cells = []
     for v in verdicts:
         val = "—" if v.value is None else _fmt(v.value) + (f" {v.unit}" if v.unit else "")
-        rows.append([v.name, v.metric, val, v.bound + (f" {v.unit}" if v.unit and v.bound else ""), v.status.upper()])
-    widths = [max(len(r[i]) for r in [head] + rows) for i in range(len(head))]
-    line = lambda r: "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip()  # noqa: E731
-    out = [line(head), "  ".join("-" * w for w in widths)] + [line(r) for r in rows]
+        cells.append([v.name, v.metric, val, v.bound + (f" {v.unit}" if v.unit and v.bound else ""), v.status.upper()])
+    head, rows = text_table(["requirement", "metric", "value", "bound", "status"], cells)
+    if max(len(x) for x in head + sum(rows, [])) <= width:
+        out = head + sum(rows, [])
+    else:
+        head, rows = text_table(["metric", "value", "bound", "status"], [c[1:] for c in cells], width,
+                                [_PATH, _WORDS, _WORDS, _WORDS], (0, 2, 1), indent="  ")
+        out = ["requirement"] + head
+        for c, lines in zip(cells, rows):
+            out += _wrap(c[0], width, _WORDS) + lines
     for v in verdicts:
         if v.message and not v.passed:
-            out.append(f"  {v.status}: {v.name}: {v.message}")
+            out += textwrap.wrap(f"  {v.status}: {v.name}: {v.message}", width, subsequent_indent="      ",
+                                 break_long_words=False, break_on_hyphens=False)
     n_fail = sum(not v.passed for v in verdicts)
     out.append(f"{len(verdicts) - n_fail}/{len(verdicts)} requirements met")
     return "\n".join(out) + "\n"

@@ -9,6 +9,8 @@ writer's PID and the stage outcomes; ``state`` running → done or interrupted, 
 The results folder is locked for the whole run: a second writer gets exit 2 naming this one. A
 folder holding the results of another mission (neither its name nor its mission file match) is
 started afresh, and stderr says so: results of two missions are never mixed (``ResultsDir.writing``).
+
+``RunSummary.as_dict`` is what ``sms run --json`` prints (keys documented there).
 """
 
 from __future__ import annotations
@@ -52,6 +54,20 @@ class RunSummary:
         if any(not v.passed for v in self.verdicts):
             codes.append(EXIT_REQUIREMENTS)
         return max(codes, default=EXIT_OK)
+
+    def as_dict(self) -> dict:
+        """The run as JSON data (``sms run --json``). Keys: ``mission``; ``results`` (the folder);
+        ``stages`` (in order: name, status (ok | failed | skipped | not configured | interrupted),
+        seconds, exit_code, message); ``verdicts`` (one per requirement: name, metric, stage, status,
+        value, bound, unit, message, margin); ``report`` (its path, or null); ``exit_code``;
+        ``passed`` (exit code 0); ``verdict`` (pass | requirements not met | failed)."""
+        code = self.exit_code
+        return {
+            "mission": self.mission, "results": str(self.out), "stages": [asdict(s) for s in self.stages],
+            "verdicts": [v.as_dict() for v in self.verdicts], "report": str(self.report) if self.report else None,
+            "exit_code": code, "passed": code == EXIT_OK,
+            "verdict": "pass" if code == EXIT_OK else "requirements not met" if code == EXIT_REQUIREMENTS else "failed",
+        }
 
 
 def _failure(exc: BaseException, debug: bool) -> tuple[int, str]:
@@ -176,10 +192,10 @@ def format_run(summary: RunSummary) -> str:
         rows.append([s.name, status, f"{s.seconds:.2f}" if s.status in ("ok", "failed", "interrupted") else "—", req])
     for stage, vs in per_stage.items():
         rows.append([stage, "—", "—", f"{sum(v.passed for v in vs)}/{len(vs)} met"])
-    widths = [max(len(r[i]) for r in [head] + rows) for i in range(len(head))]
-    line = lambda r: "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip()  # noqa: E731
-    out = [f"== {summary.mission}: results in {summary.out}/ ==", line(head), "  ".join("-" * w for w in widths)]
-    out += [line(r) for r in rows]
+    from sms_cli.check.requirements import text_table
+
+    table, lines = text_table(head, rows)
+    out = [f"== {summary.mission}: results in {summary.out}/ =="] + table + sum(lines, [])
     if summary.verdicts:
         from sms_cli.check.requirements import format_verdicts
 
