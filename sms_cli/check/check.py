@@ -3,12 +3,13 @@
 Requirements come from ``--mission`` (its ``requirements:`` list), else from the copy ``sms run``
 stored in results.json (section ``requirements.specs``). Exit 1 when a requirement or a baseline
 metric fails (a missing metric is a failure too), 2 when there is nothing to check or an input is
-invalid.
+invalid. A check that cannot run still writes the ``--junit`` report asked for: one failing test
+case that carries the error, so CI shows why (``run_check``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +19,7 @@ from sms_cli.check.baseline import Drift, compare, format_drifts, make_baseline,
 from sms_cli.check.metrics import damaged_sections, section
 from sms_cli.check.requirements import Verdict, evaluate_all, format_verdicts
 from sms_cli.check.schema import RequirementSpec
-from sms_cli.errors import EXIT_OK, EXIT_REQUIREMENTS, InputError, Location, Problem
+from sms_cli.errors import EXIT_INPUT, EXIT_NUMERICAL, EXIT_OK, EXIT_REQUIREMENTS, InputError, Location, Problem
 from sms_cli.outputs import key_line, kind_of, read_json_file
 from sms_cli.results import RESULTS_FILE, with_run_state, write_json_atomic
 
@@ -75,6 +76,7 @@ class CheckOutcome:
     drifts: list[Drift] | None = None
     notes: list[str] = field(default_factory=list)
     incomplete: str = ""  # why the results are not those of a whole run (killed, interrupted): the check fails
+    results: str = ""  # the results folder checked
 
     @property
     def exit_code(self) -> int:
@@ -93,13 +95,56 @@ class CheckOutcome:
         out.append(("PASS" if self.exit_code == 0 else "FAIL") + f": {self.mission}\n")
         return "".join(out)
 
+    def as_dict(self) -> dict[str, Any]:
+        """The outcome as JSON data (``sms check --json``). Keys: ``mission``; ``results`` (the folder
+        checked); ``passed`` and
+        ``exit_code`` (0 or 1); ``verdicts`` (one per requirement: name, metric, stage, status, value,
+        bound, unit, message, margin; null when no requirements were checked); ``drifts`` (one per
+        baseline metric: metric, status, value, expected, allowed, message; null without
+        ``--baseline``); ``notes``; ``incomplete`` (why the results are not those of a whole run, or
+        null)."""
+        return {
+            "mission": self.mission, "results": self.results, "passed": self.exit_code == EXIT_OK, "exit_code": self.exit_code,
+            "verdicts": None if self.verdicts is None else [v.as_dict() for v in self.verdicts],
+            "drifts": None if self.drifts is None else [asdict(d) for d in self.drifts],
+            "notes": list(self.notes), "incomplete": self.incomplete or None,
+        }
+
 
 def run_check(results_dir: Path, mission: Path | None = None, baseline: Path | None = None,
               junit: Path | None = None, write_baseline: Path | None = None) -> CheckOutcome:
-    """Evaluate requirements and/or a baseline; write JUnit / a new baseline when asked."""
+    """Evaluate requirements and/or a baseline; write JUnit / a new baseline when asked. When the
+    check cannot run, its error is raised after writing ``junit`` (if given) as one failing test case."""
+    try:
+        return _check(results_dir, mission, baseline, junit, write_baseline)
+    except Exception as exc:
+        if junit is not None:
+            _junit_of_failure(junit, mission.stem if mission is not None else _folder_name(results_dir), exc)
+        raise
+
+
+def _folder_name(results_dir: Path) -> str:
+    p = Path(results_dir)
+    return (p.parent if p.name == RESULTS_FILE else p).resolve().name or str(p)
+
+
+def _junit_of_failure(junit: Path, suite: str, exc: Exception) -> None:
+    from sms_cli.check.junit import write_error_junit
+    from sms_cli.failures import failure
+
+    code, message = failure(exc)
+    kind = {EXIT_INPUT: "input error", EXIT_NUMERICAL: "numerical failure"}.get(code, "internal error")
+    try:
+        write_error_junit(junit, suite, kind, f"sms check could not run (exit {code}): {message}")
+    except OSError:
+        pass  # the check's own error is the one to report
+
+
+def _check(results_dir: Path, mission: Path | None, baseline: Path | None, junit: Path | None,
+           write_baseline: Path | None) -> CheckOutcome:
     results, results_file = read_results(results_dir)
     name = str(section(results, "run").get("mission") or section(results, "compile").get("name") or Path(results_dir).name)
-    outcome = CheckOutcome(name)
+    outcome = CheckOutcome(name, results=str(results_dir))
     state = section(results, "run").get("state")
     if state in ("killed", "interrupted"):
         outcome.incomplete = (f"the run into {Path(results_dir)} was {state}: its results are incomplete; "

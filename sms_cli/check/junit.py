@@ -2,17 +2,38 @@
 
 Schema: the de-facto Jenkins/GitLab/GitHub one — ``<testsuites><testsuite name tests failures
 errors><testcase classname name><failure message type>text</failure></testcase>…``.
-Written atomically.
+Written atomically. Text that XML 1.0 cannot hold (control characters of a requirement name or a
+message) is written as ``\\xNN``, so the file always parses. ``error_junit_xml`` is the report of a
+check that could not run (damaged results, an unreadable baseline, an invalid mission): one failing
+test case carrying the error, so CI shows why.
 """
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from sms_cli.check.baseline import Drift
 from sms_cli.check.requirements import Verdict
 from sms_cli.results import write_bytes_atomic
+
+
+#: characters XML 1.0 does not allow (C0 controls but tab/newline/return, lone surrogates, U+FFFE/F)
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _xml_safe(text: str) -> str:
+    return _NOT_XML.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
+
+
+def _serialize(root: ET.Element) -> bytes:
+    for el in root.iter():
+        el.attrib = {k: _xml_safe(v) for k, v in el.attrib.items()}
+        if el.text:
+            el.text = _xml_safe(el.text)
+    ET.indent(root)
+    return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
 
 
 def _suite(root: ET.Element, name: str) -> ET.Element:
@@ -55,9 +76,23 @@ def junit_xml(mission: str, verdicts: list[Verdict] | None, drifts: list[Drift] 
         _finish(s, len(drifts), f, 0)
         total, fails = total + len(drifts), fails + f
     _finish(root, total, fails, errs)
-    ET.indent(root)
-    return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
+    return _serialize(root)
+
+
+def error_junit_xml(suite: str, kind: str, message: str) -> bytes:
+    """The report of a check that could not run: one test case failing with ``message``."""
+    root = ET.Element("testsuites", name=f"sms check {suite}")
+    s = _suite(root, f"{suite}.check")
+    tc = ET.SubElement(s, "testcase", classname=f"{suite}.check", name="the check runs")
+    ET.SubElement(tc, "failure", message=message.splitlines()[0] if message else kind, type=kind).text = message
+    _finish(s, 1, 1, 0)
+    _finish(root, 1, 1, 0)
+    return _serialize(root)
 
 
 def write_junit(path: Path, mission: str, verdicts: list[Verdict] | None, drifts: list[Drift] | None) -> Path:
     return write_bytes_atomic(path, junit_xml(mission, verdicts, drifts))
+
+
+def write_error_junit(path: Path, suite: str, kind: str, message: str) -> Path:
+    return write_bytes_atomic(path, error_junit_xml(suite, kind, message))
