@@ -1,7 +1,12 @@
 """The ``sms`` command line. Thin: parse, call a stage, print, exit with the documented code.
 
 Heavy modules (pinocchio, numpy, scipy, cvxpy, matplotlib) are imported inside commands so
-that ``sms --help`` and ``sms --version`` answer at once.
+that ``sms --help``, ``sms --version`` and shell completion answer at once.
+
+Conventions: ``--out/-o DIR`` is a results folder on every stage command; a file is ``--output
+FILE`` (``report``, ``schema``) or names its kind (``--recording``, ``--junit``, ``--baseline``);
+every command that produces figures takes ``--json`` (its result on stdout, nothing else there);
+each command's help ends with an example on a shipped mission.
 """
 
 from __future__ import annotations
@@ -35,18 +40,45 @@ app = typer.Typer(
     help="Mission analysis for space manipulator systems: a URDF robot + a YAML mission → "
     "ΔV budget, workspace maps, gains, simulation (MCAP), report and CI checks.\n\n" + EXIT_CODES_HELP,
     no_args_is_help=True,
-    add_completion=False,
     pretty_exceptions_enable=False,
     rich_markup_mode=None,
 )
 
 _state = {"debug": False}
 
-MissionArg = Annotated[Path, typer.Argument(help="mission YAML file", show_default=False)]
+
+
+class _Command(typer.core.TyperCommand):
+    """A command whose usage line names its arguments as they are (``MISSION.yaml``), not in
+    braces that read as a set of choices (typer writes ``{MISSION.yaml}``)."""
+
+    def collect_usage_pieces(self, ctx) -> list[str]:
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for param in self.get_params(ctx):
+            if isinstance(param, typer.core.TyperArgument):
+                name = param.metavar or param.name.upper()
+                pieces.append(name if param.required else f"[{name}]")
+            else:
+                pieces.extend(param.get_usage_pieces(ctx))
+        return pieces
+
+
+def command(name: str):
+    return app.command(name, cls=_Command)
+
+
+MissionArg = Annotated[Path, typer.Argument(help="mission YAML file", metavar="MISSION.yaml", show_default=False)]
+ResultsArg = Annotated[Path, typer.Argument(help="results folder (with results.json)", metavar="RESULTS_DIR",
+                                            show_default=False)]
 OutOpt = Annotated[
     Optional[Path],
-    typer.Option("--out", "-o", help="results folder (default: results/<mission name>/ next to the current directory)"),
+    typer.Option("--out", "-o", metavar="DIR",
+                 help="results folder (default: results/<mission file name>/ in the current directory)"),
 ]
+
+
+def mission_opt(help: str):
+    return typer.Option("--mission", "-m", metavar="MISSION.yaml", help=help)
 
 
 def _version(value: bool) -> None:
@@ -117,12 +149,17 @@ def _results_folder(path: Path) -> list[Output]:
     return [Output(path, "results folder", folder=True)]
 
 
+def print_json(data) -> None:
+    """A command's result on stdout as JSON (NaN and inf as null)."""
+    from sms_cli.results import _jsonable
+
+    typer.echo(json.dumps(_jsonable(data), indent=2))
+
+
 def emit(data, as_json: bool, formatter: Callable[[dict], str]) -> None:
     """Print a stage's section: JSON (machine) or its human formatter."""
     if as_json:
-        from sms_cli.results import _jsonable
-
-        typer.echo(json.dumps(_jsonable(data), indent=2))
+        print_json(data)
     else:
         typer.echo(formatter(data))
 
@@ -132,17 +169,29 @@ def default_out(mission_path: Path, out: Path | None) -> Path:
     return out if out is not None else Path("results") / mission_path.stem
 
 
-@app.command("compile")
+@command("compile")
 def compile_cmd(
     mission: MissionArg,
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
-    out: OutOpt = None,
-    write: Annotated[bool, typer.Option("--write/--no-write", help="also write the summary into the results folder")] = False,
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="DIR", help=(
+        "write the summary into this results folder (results.json): -o implies --write"))] = None,
+    write: Annotated[Optional[bool], typer.Option("--write/--no-write", help=(
+        "write the summary into the results folder (default: when -o is given; without -o the folder "
+        "is results/<mission file name>/)"), show_default=False)] = None,
     strict: Annotated[bool, typer.Option("--strict", help="refuse, as a lint, what is accepted with a warning: massless "
                                          "or point-mass links, inertias off the triangle inequality, non-physical inertias "
                                          "(also robot.strict in the mission)")] = False,
 ) -> None:
-    """Validate a mission and its robot; print the model summary (DoF, mass, inertia, wheels, modes)."""
+    """Validate a mission and its robot; print the model summary (DoF, mass, inertia, wheels, modes).
+
+    Example:
+
+    \b
+        sms compile missions/pulsar_simple.yaml --strict
+        sms compile missions/pulsar_simple.yaml --json -o results/pulsar_simple
+    """
+    if write is None:
+        write = out is not None
 
     def body() -> int:
         from sms_cli.model.summary import compile_summary, format_summary
@@ -158,13 +207,19 @@ def compile_cmd(
     run_guarded(body, _results_folder(default_out(mission, out)) if write else ())
 
 
-@app.command("budget")
+@command("budget")
 def budget_cmd(
     mission: MissionArg,
     out: OutOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the budget as JSON")] = False,
 ) -> None:
-    """ΔV, propellant and burn-time budget of the mission's manoeuvre sequence (writes results.json, CSV, plots)."""
+    """ΔV, propellant and burn-time budget of the mission's manoeuvre sequence (writes results.json, CSV, plots).
+
+    Example:
+
+    \b
+        sms budget missions/hipparcos_geo.yaml -o results/hipparcos_geo
+    """
 
     def body() -> int:
         from sms_cli.mission.load import load_mission
@@ -177,7 +232,7 @@ def budget_cmd(
     run_guarded(body, _results_folder(default_out(mission, out)))
 
 
-@app.command("analyze")
+@command("analyze")
 def analyze_cmd(
     mission: MissionArg,
     out: OutOpt = None,
@@ -185,7 +240,13 @@ def analyze_cmd(
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the PNG plots (default: as the mission says)")] = True,
     progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar on stderr (default: when a terminal)")] = None,
 ) -> None:
-    """Workspace maps, kinematic indices (manipulability, K^m/K^r, null-motion, momentum), variants and modal analysis."""
+    """Workspace maps, kinematic indices (manipulability, K^m/K^r, null-motion, momentum), variants and modal analysis.
+
+    Example:
+
+    \b
+        sms analyze missions/demeter_3dof.yaml -o results/demeter_3dof --no-plots
+    """
 
     def body() -> int:
         from sms_cli.analysis.stage import format_analysis, run_analysis
@@ -198,14 +259,20 @@ def analyze_cmd(
     run_guarded(body, _results_folder(default_out(mission, out)))
 
 
-@app.command("synthesize")
+@command("synthesize")
 def synthesize_cmd(
     mission: MissionArg,
     out: OutOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the synthesis section as JSON")] = False,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the pole map PNG")] = True,
 ) -> None:
-    """Controller/observer gains (seed 004 LMI, PD, LQR, SMC), verified after the solve; writes gains.yaml."""
+    """Controller/observer gains (Kraiem 2022 LMI, PD, LQR, SMC), verified after the solve; writes gains.yaml.
+
+    Example:
+
+    \b
+        sms synthesize missions/caldera_s1_synthesized.yaml -o results/caldera_s1_synthesized
+    """
 
     def body() -> int:
         from sms_cli.mission.load import load_mission
@@ -218,21 +285,33 @@ def synthesize_cmd(
     run_guarded(body, _results_folder(default_out(mission, out)))
 
 
-@app.command("simulate")
+@command("simulate")
 def simulate_cmd(
     mission: MissionArg,
     out: Annotated[
         Optional[Path],
-        typer.Option("--out", "-o", help="results folder (default results/<mission>/); a path ending in .mcap "
-                                         "instead names the recording (results then go to the default folder)"),
+        typer.Option("--out", "-o", metavar="DIR", help="results folder (default: results/<mission file name>/ in the "
+                                                        "current directory); a path ending in .mcap is read as "
+                                                        "--recording, as before"),
     ] = None,
+    recording: Annotated[Optional[Path], typer.Option("--recording", metavar="FILE.mcap", help=(
+        "write the recording here instead of DIR/simulation.mcap"))] = None,
     progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar (default: on a terminal)")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the metrics as JSON")] = False,
 ) -> None:
-    """Nonlinear simulation of the mission's phases; records simulation.mcap (Foxglove) and metrics."""
+    """Nonlinear simulation of the mission's phases; records simulation.mcap (Foxglove) and metrics.
 
-    mcap_path = out if out is not None and out.suffix == ".mcap" else None
-    folder = default_out(mission, None if mcap_path else out)
+    Example:
+
+    \b
+        sms simulate missions/caldera_s1_slew.yaml -o results/caldera_s1_slew
+    """
+    if out is not None and out.suffix == ".mcap":  # the old spelling of --recording
+        if recording is not None:
+            raise typer.BadParameter("give the recording once: -o DIR --recording FILE.mcap", param_hint="'-o'")
+        out, recording = None, out
+    folder = default_out(mission, out)
+    mcap_path = recording
 
     def body() -> int:
         from sms_cli.mission.load import load_mission
@@ -247,37 +326,57 @@ def simulate_cmd(
                                                  if mcap_path else []))
 
 
-@app.command("run")
+@command("run")
 def run_cmd(
     mission: MissionArg,
     out: OutOpt = None,
     progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="stage progress bars (default: on a terminal)")] = None,
     report: Annotated[bool, typer.Option("--report/--no-report", help="write report.html into the results folder")] = True,
+    as_json: Annotated[bool, typer.Option("--json", help=(
+        "print the run summary as JSON: mission, results, stages (name, status, seconds, exit_code, message), "
+        "verdicts (name, metric, stage, status, value, bound, unit, message, margin), report, exit_code, passed, "
+        "verdict"))] = False,
 ) -> None:
     """Every stage the mission configures (budget, analyze, synthesize, simulate), requirements, then the report.
 
-    A failing stage is reported and the others go on; the exit code is the worst met."""
+    A failing stage is reported and the others go on; the exit code is the worst met.
+
+    Example:
+
+    \b
+        sms run missions/pulsar_simple.yaml -o results/pulsar_simple
+    """
 
     def body() -> int:
         from sms_cli.run.orchestrate import format_run, run_mission
 
         summary = run_mission(mission, default_out(mission, out), progress=progress, report=report, debug=_state["debug"])
-        typer.echo(format_run(summary), nl=False)
+        if as_json:
+            print_json(summary.as_dict())
+        else:
+            typer.echo(format_run(summary), nl=False)
         return summary.exit_code
 
     run_guarded(body, _results_folder(default_out(mission, out)))
 
 
-@app.command("report")
+@command("report")
 def report_cmd(
-    results: Annotated[Path, typer.Argument(help="results folder (with results.json)", show_default=False)],
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="HTML file (default: <results>/report.html)")] = None,
-    mission: Annotated[Optional[Path], typer.Option("--mission", "-m", help="mission file: re-evaluate its requirements")] = None,
+    results: ResultsArg,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", metavar="FILE",
+                                                   help="HTML file (default: RESULTS_DIR/report.html)")] = None,
+    mission: Annotated[Optional[Path], mission_opt("mission file: re-evaluate its requirements")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="also print a PDF next to the HTML (needs chromium)")] = False,
 ) -> None:
     """One self-contained HTML report (plots embedded) of a results folder; optional PDF.
 
-    Sections of results.json that cannot be read are left out and named (exit 2)."""
+    Sections of results.json that cannot be read are left out and named (exit 2).
+
+    Example:
+
+    \b
+        sms report results/pulsar_simple --output reports/pulsar_simple.html --pdf
+    """
     target = output if output is not None else results / "report.html"
     outputs = [Output(target, "report", example="report.html")] if output is not None or results.is_dir() else []
     if pdf and outputs:
@@ -305,22 +404,37 @@ def report_cmd(
     run_guarded(body, outputs)
 
 
-@app.command("check")
+@command("check")
 def check_cmd(
-    results: Annotated[Path, typer.Argument(help="results folder (with results.json)", show_default=False)],
-    mission: Annotated[Optional[Path], typer.Option("--mission", "-m", help="read the requirements from this mission file "
-                                                    "(default: the copy stored by sms run)")] = None,
-    baseline: Annotated[Optional[Path], typer.Option("--baseline", "-b", help="compare with this baseline (JSON)")] = None,
-    junit: Annotated[Optional[Path], typer.Option("--junit", help="write a JUnit XML report here")] = None,
-    write_baseline: Annotated[Optional[Path], typer.Option("--write-baseline", help="write a baseline of these results here")] = None,
+    results: ResultsArg,
+    mission: Annotated[Optional[Path], mission_opt("read the requirements from this mission file "
+                                                   "(default: the copy stored by sms run)")] = None,
+    baseline: Annotated[Optional[Path], typer.Option("--baseline", "-b", metavar="FILE",
+                                                     help="compare with this baseline (JSON)")] = None,
+    junit: Annotated[Optional[Path], typer.Option("--junit", metavar="FILE", help=(
+        "write a JUnit XML report here (also when the check cannot run: one failing test case with the error)"))] = None,
+    write_baseline: Annotated[Optional[Path], typer.Option("--write-baseline", metavar="FILE",
+                                                           help="write a baseline of these results here")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help=(
+        "print the outcome as JSON: mission, results, passed, exit_code, verdicts (name, metric, stage, status, value, bound, "
+        "unit, message, margin), drifts (metric, status, value, expected, allowed, message), notes, incomplete"))] = False,
 ) -> None:
-    """Requirements and regression baseline → table, JUnit XML, exit 1 when one fails."""
+    """Requirements and regression baseline → table, JUnit XML, exit 1 when one fails.
+
+    Example:
+
+    \b
+        sms check results/hipparcos_geo --baseline baselines/hipparcos_geo.json --junit hipparcos_geo.xml
+    """
 
     def body() -> int:
         from sms_cli.check.check import run_check
 
         outcome = run_check(results, mission, baseline, junit, write_baseline)
-        typer.echo(outcome.format(), nl=False)
+        if as_json:
+            print_json(outcome.as_dict())
+        else:
+            typer.echo(outcome.format(), nl=False)
         return outcome.exit_code
 
     run_guarded(body, ([Output(junit, "JUnit report", example="junit.xml")] if junit else [])
@@ -348,9 +462,10 @@ def schema_cmd(
     run_guarded(body, [Output(output, "schema", example="mission.schema.json")] if output else [])
 
 
-@app.command("inspect")
+@command("inspect")
 def inspect_cmd(
-    recording: Annotated[Path, typer.Argument(help="MCAP recording written by `sms simulate`", show_default=False)],
+    recording: Annotated[Path, typer.Argument(help="MCAP recording written by `sms simulate`", metavar="RECORDING.mcap",
+                                              show_default=False)],
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
     repair: Annotated[bool, typer.Option("--repair", help="rewrite what can be read of a killed, truncated or damaged "
                                                           "recording into a complete file (in place, atomically)")] = False,
@@ -358,7 +473,13 @@ def inspect_cmd(
     """Summarise a simulation recording (MCAP): topics, schemas, message counts, time span, rates, metadata, run status.
 
     A damaged or unfinished recording is exit 2, saying what can still be read; --repair rewrites that part
-    into a complete file."""
+    into a complete file.
+
+    Example:
+
+    \b
+        sms inspect results/caldera_s1_slew/simulation.mcap --json
+    """
 
     def body() -> int:
         from sms_cli.sim.inspect import format_inspection, format_repair, inspect_recording, repair_recording
