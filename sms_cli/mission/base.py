@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Annotated, Any
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
@@ -27,6 +28,23 @@ def unique(names: list[str], what: str, field: str, key: str = "") -> None:
         first[name] = i
 
 
+@dataclass(frozen=True)
+class ItemCount:
+    """JSON Schema of a list's length, for lengths the loader checks in a validator (whose message,
+    "expected 3 numbers, got 2", pydantic's ``min_length`` would replace): ``ItemCount(3)`` is
+    minItems = maxItems = 3; ``ItemCount(3, 6)`` is exactly 3 or exactly 6 items."""
+
+    counts: tuple[int, ...]
+
+    def __init__(self, *counts: int):
+        object.__setattr__(self, "counts", counts)
+
+    def __get_pydantic_json_schema__(self, core_schema: Any, handler: Any) -> dict[str, Any]:
+        schema = handler(core_schema)
+        forms = [{"minItems": n, "maxItems": n} for n in self.counts]
+        return {**schema, **forms[0]} if len(forms) == 1 else {**schema, "anyOf": forms}
+
+
 def _fixed_length(n: int):
     def check(v: list[float]) -> list[float]:
         if len(v) != n:
@@ -36,11 +54,16 @@ def _fixed_length(n: int):
     return AfterValidator(check)
 
 
-Vector3 = Annotated[list[Dimensionless], _fixed_length(3), Field(description="3 numbers")]
-Position3 = Annotated[list[Length], _fixed_length(3), Field(description="x y z position (m)")]
-Rotation3 = Annotated[list[Angle], _fixed_length(3), Field(description="roll pitch yaw, URDF convention (rad)")]
-Rate3 = Annotated[list[AngularRate], _fixed_length(3), Field(description="angular velocity (rad/s)")]
-Vector6 = Annotated[list[Dimensionless], _fixed_length(6), Field(description="6 numbers")]
+def vector(item: Any, n: int, description: str) -> Any:
+    """A list of exactly ``n`` items (checked at load, and stated in the JSON Schema)."""
+    return Annotated[list[item], _fixed_length(n), ItemCount(n), Field(description=description)]
+
+
+Vector3 = vector(Dimensionless, 3, "3 numbers")
+Position3 = vector(Length, 3, "x y z position (m)")
+Rotation3 = vector(Angle, 3, "roll pitch yaw, URDF convention (rad)")
+Rate3 = vector(AngularRate, 3, "angular velocity (rad/s)")
+Vector6 = vector(Dimensionless, 6, "6 numbers")
 
 
 def _inertia6(v: list[float]) -> list[float]:
@@ -69,6 +92,7 @@ def _inertia6(v: list[float]) -> list[float]:
 InertiaTensor = Annotated[
     list[Inertia],
     AfterValidator(_inertia6),
+    ItemCount(3, 6),
     Field(description="[ixx, iyy, izz] or [ixx, iyy, izz, ixy, ixz, iyz] about the CoM (kg m^2)"),
 ]
 

@@ -260,8 +260,7 @@ def load_mission_dict(data: dict[str, Any], base_dir: Path | str | None = None, 
 
 
 def mission_json_schema() -> dict[str, Any]:
-    """JSON Schema of mission files (for editors: yaml-language-server, VS Code)."""
-    schema = Mission.model_json_schema()
-    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
-    schema["title"] = "sms mission file"
-    return schema
+    """JSON Schema of mission files (for editors: yaml-language-server, VS Code); see ``json_schema``."""
+    from sms_cli.mission.json_schema import mission_json_schema
+
+    return mission_json_schema(Mission)

@@ -14,11 +14,14 @@ Use the ``Annotated`` types below as pydantic field types: ``Length``, ``Mass``,
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
+from dataclasses import dataclass
+from functools import cache
 from typing import Annotated, Any
 
-from pydantic import BeforeValidator, WithJsonSchema
+from pydantic import BeforeValidator
 
 # (length, mass, time, angle)
 Dim = tuple[int, int, int, int]
@@ -65,6 +68,7 @@ _BASE_UNITS: dict[str, tuple[float, Dim]] = {
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _QUANTITY_RE = re.compile(rf"^\s*({_NUMBER})\s*(.*?)\s*$")
 _TOKEN_RE = re.compile(r"([A-Za-z°]+)(?:\^?([-+]?\d{1,2}))?")
+_SEP = r"[\s*·.]+"  # between the factors of a product ("N m", "N*m", "N·m", "N.m")
 #: Longest quantity string read (characters); longer ones are refused before parsing.
 MAX_QUANTITY_CHARS = 200
 #: Characters of a user's value echoed in a message.
@@ -152,7 +156,7 @@ def _parse_unit_expression(expr: str) -> tuple[float, Dim]:
     parts = expr.split("/")
     for i, part in enumerate(parts):
         sign = 1 if i == 0 else -1
-        for raw in re.split(r"[\s*·.]+", part.strip()):
+        for raw in re.split(_SEP, part.strip()):
             if not raw or raw == "1":
                 continue
             m = _TOKEN_RE.fullmatch(raw)
@@ -215,18 +219,158 @@ def to_si(value: Any, dimension: str) -> float:
     return number * factor
 
 
+# ------------------------------------------------------------------ the JSON Schema's unit patterns
+# The schema lists, for each kind, the unit expressions people write, built from _BASE_UNITS and
+# spelled with the separators, powers and "/" that _parse_unit_expression reads. The loader reads
+# more (any order of the factors, "m m/m" for a length); the schema is a subset of it (tested).
+
+#: Dimensions of the base units, in the order the schema writes them in a product ("kg m^2 s^-2").
+_BASE_DIMS: tuple[Dim, ...] = ((0, 1, 0, 0), (1, 0, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+_PER = r"\s*/\s*"  # every factor after a "/" is in the denominator ("m/s/s" = m/s^2)
+
+Factor = tuple[Dim, int]  # a unit class (the tokens of one dimension) and its power
+Product = tuple[tuple[Factor, ...], tuple[Factor, ...]]  # numerator, denominator
+
+
+@cache
+def _unit_classes() -> dict[Dim, tuple[str, ...]]:
+    """The unit tokens of _BASE_UNITS by dimension, the SI one first: {(1, 0, 0, 0): ("m", "km", "cm", "mm"), ...}."""
+    classes: dict[Dim, list[str]] = {}
+    for token, (_, dim) in _BASE_UNITS.items():
+        classes.setdefault(dim, []).append(token)
+    return {dim: tuple(sorted(tokens, key=lambda t: _BASE_UNITS[t][0] != 1.0)) for dim, tokens in classes.items()}
+
+
+def _subsets(classes: tuple[Dim, ...], powers: tuple[int, ...], most: int):
+    """Products of at most ``most`` distinct classes (in the given order), each at one of ``powers``."""
+    for n in range(most + 1):
+        for chosen in itertools.combinations(classes, n):
+            for ps in itertools.product(powers, repeat=n):
+                yield tuple(zip(chosen, ps))
+
+
+def _products() -> list[Product]:
+    """The unit products the schema can list, before the dimension filter:
+
+    - base units (mass, length, time, angle), powers 1-3: up to 3 factors over up to 2
+      (``kg m^2/s^2``), or up to 3 factors with negative powers last (``kg m^2 s^-2``);
+    - one derived unit (N, Nm, Nms, W and their multiples) with length, time and angle to the
+      power 1 on either side (``N m s/rad``, ``N/m``);
+    - a per-time angle unit (rpm, Hz) alone or per time (``rpm/s``).
+    """
+    classes = _unit_classes()
+    out: list[Product] = []
+    for num in _subsets(_BASE_DIMS, (1, 2, 3), 3):
+        rest = tuple(c for c in _BASE_DIMS if c not in dict(num))
+        out.extend((num, den) for den in _subsets(rest, (1, 2, 3), 2) if num or den)
+        for signs in itertools.product((1, -1), repeat=len(num)):
+            if -1 in signs:
+                signed = tuple((c, p * s) for (c, p), s in zip(num, signs))
+                out.append((tuple(f for f in signed if f[1] > 0) + tuple(f for f in signed if f[1] < 0), ()))
+    lta = _BASE_DIMS[1:]
+    for derived in (d for d in classes if d not in _BASE_DIMS):
+        if derived[1] == 0:  # no mass: rpm, Hz
+            out += [(((derived, 1),), ()), (((derived, 1),), ((_BASE_DIMS[2], 1),))]
+            continue
+        for num in _subsets(lta, (1,), 3):
+            rest = tuple(c for c in lta if c not in dict(num))
+            out.extend((((derived, 1),) + num, den) for den in _subsets(rest, (1,), 3))
+    return out
+
+
+def _dimension_of(product: Product) -> Dim:
+    num, den = product
+    return tuple(sum(c[k] * p for c, p in num) - sum(c[k] * p for c, p in den) for k in range(4))  # type: ignore[return-value]
+
+
+@cache
+def unit_products(dimension: str) -> tuple[Product, ...]:
+    """The unit products the JSON Schema accepts for a quantity kind: those the loader reads as this
+    kind (``_compatible``) whose angle is the kind's or absent (implicit radians); a per-time angle
+    unit alone also counts as a frequency (``"0.16 Hz"``: the loader counts cycles)."""
+    wanted = DIMENSIONS[dimension]
+    out = []
+    for product in _products():
+        given = _dimension_of(product)
+        if not _compatible(given, wanted):
+            continue
+        cycles = not product[1] and len(product[0]) == 1 and product[0][0][0] not in _BASE_DIMS and given[:3] == wanted[:3]
+        if given[3] in (0, wanted[3]) or cycles:
+            out.append(product)
+    return tuple(out)
+
+
+def spell(product: Product, pick: int = 0) -> str:
+    """A product written with the ``pick``-th token of each class (clamped): ``"kg m^2/s^2"``."""
+    classes = _unit_classes()
+
+    def factor(c: Dim, p: int) -> str:
+        tokens = classes[c]
+        return tokens[min(pick, len(tokens) - 1)] + ("" if p == 1 else f"^{p}")
+
+    num, den = product
+    text = " ".join(factor(c, p) for c, p in num) or "1"
+    return text + ("/" + " ".join(factor(c, p) for c, p in den) if den else "")
+
+
+def _factor_pattern(c: Dim, p: int) -> str:
+    tokens = "|".join(sorted(_unit_classes()[c], key=len, reverse=True))
+    power = r"(?:\^?\+?1)?" if p == 1 else (rf"\^?\+?{p}" if p > 0 else rf"\^?-{-p}")
+    return f"(?:{tokens}){power}"
+
+
+@cache
+def quantity_pattern(dimension: str) -> str:
+    """The JSON Schema pattern (ECMA-262 and Python ``re``) of a quantity string of this kind: a
+    number as ``to_si`` reads it, then nothing (SI) or one of ``unit_products(dimension)``."""
+    alternatives = []
+    for num, den in unit_products(dimension):
+        text = _SEP.join(_factor_pattern(c, p) for c, p in num) or "1?"
+        if den:
+            text += _PER + f"(?:{_SEP}|{_PER})".join(_factor_pattern(c, p) for c, p in den)
+        alternatives.append(text)
+    units = rf"\s*(?:{'|'.join(alternatives)})?" if alternatives else ""
+    return rf"^\s*{_NUMBER}{units}\s*$"
+
+
+def quantity_text_schema(dimension: str) -> dict[str, Any]:
+    """JSON Schema of the string form of a quantity (``"150 kg"``), its description listing the units."""
+    products = unit_products(dimension)
+    if products:
+        classes = _unit_classes()
+        used = {c for num, den in products for c, _ in num + den}
+        others = "; ".join(f"{', '.join(classes[c][1:])} for {classes[c][0]}" for c in classes if c in used and len(classes[c]) > 1)
+        units = (f"a number, then nothing (SI) or one of: {', '.join(spell(p) for p in products)}"
+                 + (f" (or {others})" if others else ""))
+    else:
+        units = "a number, without a unit"
+    return {"type": "string", "pattern": quantity_pattern(dimension), "maxLength": MAX_QUANTITY_CHARS,
+            "description": f"{dimension} as text: {units}"}
+
+
+def quantity_description(dimension: str) -> str:
+    """What a quantity field's hover says: ``mass (bare number = SI; or a string with a unit, e.g. "150 kg")``."""
+    return f"{dimension} (bare number = SI; or a string with a unit, e.g. {_EXAMPLES.get(dimension, '1.0')})"
+
+
+@dataclass(frozen=True)
+class _QuantitySchema:
+    """JSON Schema of a quantity field: the number (with the field's bounds, ``gt=0`` → exclusiveMinimum)
+    or the string of this kind. ``sms_cli.mission.json_schema`` moves the string form into ``$defs``
+    and carries the bounds over to it."""
+
+    dimension: str
+
+    def __get_pydantic_json_schema__(self, core_schema: Any, handler: Any) -> dict[str, Any]:
+        number = handler(core_schema)
+        return {"anyOf": [number, quantity_text_schema(self.dimension)], "description": quantity_description(self.dimension)}
+
+
 def _quantity(dimension: str) -> Any:
     def validate(v: Any) -> float:
         return to_si(v, dimension)  # UnitError is a ValueError: pydantic reports it with its hint
 
-    schema = {
-        "anyOf": [
-            {"type": "number"},
-            {"type": "string", "pattern": rf"^\s*{_NUMBER}\s*.*$"},
-        ],
-        "description": f"{dimension} (bare number = SI; or a string with a unit, e.g. {_EXAMPLES.get(dimension, '1.0')})",
-    }
-    return Annotated[float, BeforeValidator(validate), WithJsonSchema(schema)]
+    return Annotated[float, BeforeValidator(validate), _QuantitySchema(dimension)]
 
 
 Length = _quantity("length")
