@@ -6,11 +6,11 @@ N m; every quantity also accepts a unit string (``"0.5 rpm"``, ``"180 deg"``).
 
 from __future__ import annotations
 
-from typing import Literal, Union
+from typing import Annotated, Literal, Union
 
 from pydantic import Field, model_validator
 
-from sms_cli.mission.base import StrictModel
+from sms_cli.mission.base import ItemCount, StrictModel
 from sms_cli.mission.units import Angle, AngularRate, Force, Length, Torque, Velocity
 
 #: A joint coordinate: an angle (revolute) or a length (prismatic).
@@ -51,7 +51,7 @@ class SamplingSpec(StrictModel):
     n: int = Field(4096, ge=1, description="grid: values per joint; sobol: number of samples (a power of 2 is best)")
     joints: list[str] | None = Field(
         None, description="arm joints to sample (default: all); the others keep their initial value")
-    ranges: dict[str, list[JointValue]] = Field(
+    ranges: dict[str, Annotated[list[JointValue], ItemCount(2)]] = Field(
         default_factory=dict, description="per-joint [lower, upper] overriding the URDF limits")
     symmetry: SymmetrySpec | None = None
     seed: int = Field(0, description="Sobol scrambling seed")

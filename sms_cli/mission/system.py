@@ -20,6 +20,7 @@ from sms_cli.mission.base import (
     Vector3,
     Vector6,
     unique,
+    vector,
 )
 from sms_cli.mission.units import (
     Angle,
@@ -180,7 +181,7 @@ class InitialState(StrictModel):
     base_attitude: Rotation3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     base_angular_velocity: Rate3 = Field(default_factory=lambda: [0.0, 0.0, 0.0],
                                          description="ω0 in the base frame (rad/s)")
-    base_linear_velocity: list[Velocity] = Field(default_factory=lambda: [0.0, 0.0, 0.0],
-                                                 description="base origin velocity in the inertial frame (m/s)")
+    base_linear_velocity: vector(Velocity, 3, "base origin velocity in the inertial frame (m/s)") = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0])
     joints: dict[str, Angle] = Field(default_factory=dict, description="joint positions by name (rad or m)")
     joint_rates: dict[str, AngularRate] = Field(default_factory=dict)

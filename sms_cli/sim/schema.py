@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from sms_cli.mission.base import Position3, Rotation3, StrictModel, Vector3
+from sms_cli.mission.base import Position3, Rotation3, StrictModel, Vector3, vector
 from sms_cli.mission.units import Angle, AngularRate, Force, Frequency, Time, Torque
 from sms_cli.sim.laws.schema import ArmLawSpec, AttitudeLawSpec, ResolvedRateSpec
 
@@ -29,7 +29,7 @@ class EndEffectorTarget(StrictModel):
     """End-effector target in the inertial frame: a fixed point, or a point moving at constant velocity."""
 
     position: Position3
-    velocity: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="m/s, inertial")
+    velocity: vector(float, 3, "m/s, inertial") = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     relative_to_start: bool = Field(False, description="position is an offset from the EE position at the phase start")
 
 
@@ -106,8 +106,8 @@ class DisturbanceSpec(StrictModel):
 
     kind: Literal["constant", "pulse"] = "pulse"
     frame: Literal["base", "inertial"] = "base"
-    force: list[Force] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
-    torque: list[Torque] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    force: vector(Force, 3, "x y z (N)") = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    torque: vector(Torque, 3, "x y z (N m)") = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     start: Time = 0.0
     duration: Time = 0.0
 
