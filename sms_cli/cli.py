@@ -443,9 +443,25 @@ def check_cmd(
 
 @app.command("schema")
 def schema_cmd(
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="write to this file instead of stdout")] = None,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", metavar="FILE",
+                                                   help="write to this file instead of stdout")] = None,
 ) -> None:
-    """Print the JSON Schema of mission files (point your editor's YAML plugin at it)."""
+    """Print the JSON Schema of mission files, for editors (VS Code's YAML extension, yaml-language-server).
+
+    One schema for every mission file, the one an editor should use: a file with `extends:` is
+    checked as partial (its mappings may leave out what they inherit), any other file as complete
+    (every required key). Quantities are checked for their bounds and, written with a unit, for a
+    unit of their kind; vectors for their length; sms compile checks the rest.
+    missions/mission.schema.json is this output; each shipped mission names it on its first line:
+
+    \b
+        # yaml-language-server: $schema=./mission.schema.json
+
+    Example:
+
+    \b
+        sms schema --output missions/mission.schema.json
+    """
 
     def body() -> int:
         from sms_cli.mission.load import mission_json_schema
