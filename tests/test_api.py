@@ -57,6 +57,20 @@ def analysis_mission(tmp_path: Path) -> Path:
     return p
 
 
+def assert_plain_json(x, at: str = "section") -> None:
+    """``x`` is plain JSON data, as results.json holds it: no numpy scalar or array, no NaN or infinity."""
+    if isinstance(x, dict):
+        for k, v in x.items():
+            assert type(k) is str, at
+            assert_plain_json(v, f"{at}.{k}")
+    elif isinstance(x, list):
+        for i, v in enumerate(x):
+            assert_plain_json(v, f"{at}[{i}]")
+    else:
+        assert type(x) in (str, int, float, bool, type(None)), f"{at}: {type(x).__name__}"
+        assert not (type(x) is float and not math.isfinite(x)), at
+
+
 def files_in(folder: Path) -> set[str]:
     return {p.name for p in folder.iterdir() if p.name != ".sms.lock"}
 
@@ -194,6 +208,8 @@ def test_without_out_no_stage_writes_a_file(tmp_path_factory, empty_cwd_and_tmp)
     r = sms.simulate(MISSIONS / "basilisk_rw_reference.yaml")
     assert list(cwd.iterdir()) == [] and list(tmp.iterdir()) == []
     assert b.files == a.files == s.files == r.files == []
+    for res in (b, a, s, r):
+        assert_plain_json(res.section)
     assert b.section["artifacts"] == [] and a.section["artifacts"] == []
     assert s.section["files"] == {} and r.section["files"] == {}
     assert isinstance(b, sms.BudgetResult) and isinstance(a, sms.AnalysisResult)
@@ -212,6 +228,11 @@ def test_a_diverged_simulation_raises_with_what_ran_and_writes_nothing(empty_cwd
     assert res.status == "diverged" and "limit 0.02" in res.divergence and res.files == []
     assert "diverged at t = " in str(exc.value) and "What ran is in" not in str(exc.value)
     assert list(cwd.iterdir()) == [] and list(tmp.iterdir()) == []
+    with pytest.raises(sms.NumericalError) as exc:  # with out=, as the CLI: everything written, then the error
+        sms.simulate(sms.load_mission_dict(data, base_dir=MISSIONS), out=tmp / "out")
+    assert f"What ran is in {tmp / 'out' / 'simulation.mcap'}" in str(exc.value)
+    assert {p.name for p in exc.value.result.files} == files_in(tmp / "out") >= {"simulation.mcap", "results.json"}
+    assert json.loads((tmp / "out" / "results.json").read_text())["simulate"]["status"] == "diverged"
 
 
 def test_an_unverified_synthesis_raises_with_its_gains(empty_cwd_and_tmp):
