@@ -1,7 +1,12 @@
-"""Workspace plots (PNG): the end-effector cloud coloured by an index in the satellite frame
-(the views of seed 004 Fig. 3.6-3.8), index histograms, and index slices along each joint.
+"""Workspace plots (PNG, drawn at the size the report shows them, :mod:`sms_cli.report.figstyle`).
 
-Positions in metres in R_sat (base-link frame, origin at the base-link origin).
+* :func:`cloud`: one index over the reachable workspace, as the XY, XZ and YZ projections of the
+  end-effector positions in the satellite frame (R_sat: base-link frame, origin at the base-link
+  origin, m); each cell shows the best value of the sampled configurations that project into it
+  (the views of Kraiem 2022, Fig. 3.6-3.8);
+* :func:`compare_clouds`: the same maps for every design variant on one colour scale;
+* :func:`histograms`: the distribution of every index over the sampled workspace;
+* :func:`slices`: how each index depends on each joint (mean over the other joints).
 """
 
 from __future__ import annotations
@@ -10,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sms_cli.results import atomic_path
+from sms_cli.report import figstyle as S
 
 LABELS = {
     "K_m": "K^m_ω0 (joint share of base attitude disturbance)",
@@ -28,116 +33,217 @@ LABELS = {
     "h_arm_max": "arm momentum at max joint speed (N m s)",
     "h_ratio": "arm momentum / wheel capacity",
 }
+# Panel titles (≤ 24 characters: they sit above a third of the figure width).
+_R, _W = r"\dot{r}_\mathrm{EE}", r"\omega_\mathrm{EE}"
+SHORT = {
+    "K_m": r"$K^m_{\omega_0}$ joint share", "K_r": r"$K^r_{\omega_0}$ wheel share", "mu_fixed": r"$\mu$ fixed base",
+    "fixed_cond": r"$\sigma_{min}/\sigma_{max}$ fixed base", "mu_gjm": r"$\mu(J^*)$ free floating",
+    "gjm_cond": r"$\sigma_{min}/\sigma_{max}$ of $J^*$", "mu_ratio": r"$\mu(J^*)\,/\,\mu$ fixed base",
+    "mu_dyn": r"dynamic $\mu^*$", "mu_scal_lin": f"$\\mu({_R})$ base free", "mu_null_lin": f"$\\mu^N({_R})$",
+    "mu_null_ang": f"$\\mu^N({_W})$", "mu_scal_lin_norm": f"$\\mu({_R})$ normalised",
+    "mu_null_lin_norm": f"$\\mu^N({_R})$ normalised", "joint_limit_margin": "joint-limit margin",
+    "h_arm_max": "arm momentum (N m s)", "h_ratio": "arm / wheel momentum",
+}
+LOWER_IS_BETTER = frozenset({"K_m", "h_arm_max", "h_ratio"})
 KEY_COLUMNS = ("K_m", "mu_gjm", "mu_ratio", "mu_dyn", "mu_scal_lin_norm", "mu_null_lin_norm", "h_ratio", "joint_limit_margin")
+_PLANES = ((0, 1, "XY"), (0, 2, "XZ"), (1, 2, "YZ"))
+_UNDEFINED = "#c9ced6"
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+def better(column: str) -> str:
+    return "lower" if column in LOWER_IS_BETTER else "higher"
 
 
-def _save(fig, path: Path) -> Path:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    _plt().close(fig)
-    return Path(path)
-
-
-def _limits(values: np.ndarray) -> tuple[float, float]:
+def _limits(values: np.ndarray, lo_pct: float = 1.0, hi_pct: float = 99.0) -> tuple[float, float]:
     v = values[np.isfinite(values)]
     if v.size == 0:
         return 0.0, 1.0
-    lo, hi = np.percentile(v, [1, 99]) if v.size > 50 else (v.min(), v.max())
+    lo, hi = np.percentile(v, [lo_pct, hi_pct]) if v.size > 50 else (v.min(), v.max())
     return (float(lo), float(hi)) if hi > lo else (float(v.min()), float(v.max()) + 1e-12)
 
 
+def _box(xyz_list: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and (padded, never flat) span per axis of every cloud."""
+    A = np.vstack([x[np.all(np.isfinite(x), axis=1)] for x in xyz_list] or [np.zeros((1, 3))])
+    if not len(A):
+        A = np.zeros((1, 3))
+    lo, hi = A.min(axis=0), A.max(axis=0)
+    span = hi - lo
+    span = np.maximum(span, 0.05 * max(float(span.max()), 1e-3)) * 1.06
+    return (lo + hi) / 2, span
+
+
+def _best_map(u: np.ndarray, v: np.ndarray, values: np.ndarray, lower: bool, extent: tuple[float, float, float, float],
+              cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Best finite value per cell of the (u, v) plane, and the cells holding only undefined samples."""
+    u0, u1, v0, v1 = extent
+    nu, nv = max(1, int(round((u1 - u0) / cell))), max(1, int(round((v1 - v0) / cell)))
+    iu = np.clip(((u - u0) / (u1 - u0) * nu).astype(int), 0, nu - 1)
+    iv = np.clip(((v - v0) / (v1 - v0) * nv).astype(int), 0, nv - 1)
+    flat = iv * nu + iu
+    ok = np.isfinite(values)
+    best = np.full(nu * nv, np.inf if lower else -np.inf)
+    (np.minimum if lower else np.maximum).at(best, flat[ok], values[ok])
+    undefined = np.zeros(nu * nv, dtype=bool)
+    undefined[flat[~ok]] = True
+    best[~np.isfinite(best)] = np.nan
+    undefined &= np.isnan(best)
+    return best.reshape(nv, nu), undefined.reshape(nv, nu)
+
+
+def _cell(spans: np.ndarray, n: int) -> float:
+    """Cell size: about 4 samples per occupied cell of a projection, 12 to 90 cells across."""
+    across = int(np.clip(np.sqrt(max(n, 1) / 4.0), 12, 90))
+    return float(spans.max()) / across
+
+
+def _maps_row(fig, axes, xyz: np.ndarray, values: np.ndarray, column: str, norm, centre, span, cell, row_title: str = ""):
+    """The three projections of one cloud on ``axes`` (shared colour norm; ``row_title`` leads the
+    first panel's title); returns the image artist."""
+    lower = column in LOWER_IS_BETTER
+    im = None
+    for ax, (i, j, name) in zip(axes, _PLANES):
+        ext = (centre[i] - span[i] / 2, centre[i] + span[i] / 2, centre[j] - span[j] / 2, centre[j] + span[j] / 2)
+        best, undef = _best_map(xyz[:, i], xyz[:, j], values, lower, ext, cell)
+        if undef.any():
+            grey = np.ma.masked_where(~undef, np.ones(undef.shape))
+            ax.imshow(grey, origin="lower", extent=ext, cmap=_grey_cmap(), vmin=0, vmax=1, interpolation="nearest",
+                      aspect="equal")
+        im = ax.imshow(best, origin="lower", extent=ext, norm=norm, interpolation="nearest", aspect="equal")
+        ax.set_xlabel(f"{'xyz'[i]} (m)")
+        ax.set_ylabel(f"{'xyz'[j]} (m)", labelpad=3)
+        ax.set_title(f"{row_title}{name}" if row_title and ax is axes[0] else f"{name} projection")
+        ax.grid(False)
+        ax.locator_params(nbins=5)
+    return im
+
+
+def _grey_cmap():
+    from matplotlib.colors import ListedColormap
+
+    return ListedColormap([_UNDEFINED])
+
+
+_CLOUD = {"left": 56, "right": 118, "top": 52, "bottom": 44, "wgap": 64, "hgap": 62}
+
+
+def _cloud_figure(spans: np.ndarray, rows: int):
+    """Figure and axes (rows × XY, XZ, YZ) whose widths follow the horizontal spans, so the cells are
+    square and every panel is as tall as the figure allows."""
+    m = _CLOUD
+    ratios = [float(spans[0]), float(spans[0]), float(spans[1])]
+    usable = S.FULL_PX - m["left"] - m["right"] - 2 * m["wgap"]
+    panel_h = float(np.clip(usable * float(max(spans[1], spans[2])) / sum(ratios), 170, 330))
+    height = int(m["top"] + rows * panel_h + (rows - 1) * m["hgap"] + m["bottom"])
+    return S.panels(S.FULL_PX, height, rows, 3, width_ratios=ratios, **m)
+
+
+def _colorbar(fig, im, column: str, undefined: bool) -> None:
+    W, H = fig.canvas.get_width_height()
+    m = _CLOUD
+    cax = S.px_axes(fig, W - m["right"] + 14, m["bottom"], 14, H - m["top"] - m["bottom"])
+    cb = fig.colorbar(im, cax=cax)
+    cb.set_label(f"{SHORT.get(column, column)}\n({better(column)} is better)")
+    if undefined:  # above the bar, clear of its top tick label
+        fig.text((W - m["right"] + 4) / W, (H - m["top"] + 11) / H, "grey: undefined", fontsize=S.MIN_FONT_PT, va="bottom")
+
+
+def _norm(values: np.ndarray, vlim: tuple[float, float] | None):
+    from matplotlib.colors import Normalize
+
+    vmin, vmax = vlim or _limits(values)
+    return Normalize(vmin=vmin, vmax=vmax, clip=True)
+
+
+@S.styled
 def cloud(path: Path, xyz: np.ndarray, values: np.ndarray, column: str, title: str,
           vlim: tuple[float, float] | None = None) -> Path:
-    """EE positions coloured by ``values``: a 3-D view and the XY, XZ, YZ projections (R_sat)."""
-    plt = _plt()
-    fig = plt.figure(figsize=(11, 9))
-    ok = np.isfinite(values)
-    vmin, vmax = vlim or _limits(values)
-    size = 4 if len(values) > 5000 else 10
-    ax = fig.add_subplot(2, 2, 1, projection="3d")
-    sc = ax.scatter(xyz[ok, 0], xyz[ok, 1], xyz[ok, 2], c=values[ok], s=size, cmap="viridis", vmin=vmin, vmax=vmax,
-                    depthshade=False)
-    ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
-    ax.view_init(elev=25, azim=-60)
-    for k, (i, j, name) in enumerate(((0, 1, "XY"), (0, 2, "XZ"), (1, 2, "YZ")), start=2):
-        a = fig.add_subplot(2, 2, k)
-        order = np.argsort(values[ok])  # best values drawn last
-        a.scatter(xyz[ok][order, i], xyz[ok][order, j], c=values[ok][order], s=size, cmap="viridis", vmin=vmin, vmax=vmax)
-        if (~ok).any():
-            a.scatter(xyz[~ok, i], xyz[~ok, j], s=size, c="lightgrey", label="undefined")
-        a.set_xlabel("xyz"[i] + " (m)"), a.set_ylabel("xyz"[j] + " (m)"), a.set_title(f"{name} projection")
-        a.set_aspect("equal", adjustable="datalim")
-    fig.colorbar(sc, ax=fig.axes, shrink=0.6, label=LABELS.get(column, column))
-    fig.suptitle(title)
-    return _save(fig, path)
+    """One index over the workspace: XY, XZ and YZ maps of the best value per cell (R_sat, m)."""
+    centre, span = _box([xyz])
+    fig, axes = _cloud_figure(span, 1)
+    norm = _norm(values, vlim)
+    im = _maps_row(fig, axes[0], xyz, values, column, norm, centre, span, _cell(span, len(values)))
+    _colorbar(fig, im, column, bool((~np.isfinite(values)).any()))
+    fig.suptitle(S.cite(title), x=0.01, y=0.99, ha="left", va="top")
+    return S.save(fig, path)
 
 
+@S.styled
 def compare_clouds(path: Path, clouds: list[tuple[str, np.ndarray, np.ndarray]], column: str, title: str) -> Path:
-    """Side-by-side 3-D EE clouds of one index for several variants, one colour scale (Fig. 3.6)."""
-    plt = _plt()
-    n = len(clouds)
-    fig = plt.figure(figsize=(6 * n, 5.5))
-    allv = np.concatenate([v for _, _, v in clouds])
-    vmin, vmax = _limits(allv)
-    for k, (name, xyz, v) in enumerate(clouds, start=1):
-        ax = fig.add_subplot(1, n, k, projection="3d")
-        ok = np.isfinite(v)
-        sc = ax.scatter(xyz[ok, 0], xyz[ok, 1], xyz[ok, 2], c=v[ok], s=4, cmap="viridis", vmin=vmin, vmax=vmax, depthshade=False)
-        ax.set_title(f"{name}: max {np.nanmax(v):.3g}, min {np.nanmin(v):.3g}")
-        ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
-    fig.colorbar(sc, ax=fig.axes, shrink=0.7, label=LABELS.get(column, column))
-    fig.suptitle(title)
-    return _save(fig, path)
+    """One index for several variants, a row of XY, XZ, YZ maps per variant, one colour scale."""
+    centre, span = _box([xyz for _, xyz, _ in clouds])
+    fig, axes = _cloud_figure(span, len(clouds))
+    norm = _norm(np.concatenate([v for _, _, v in clouds]), None)
+    cell = _cell(span, min(len(v) for _, _, v in clouds))
+    im = None
+    for row, (name, xyz, v) in zip(axes, clouds):
+        fin = v[np.isfinite(v)]
+        best = f" (best {(fin.min() if column in LOWER_IS_BETTER else fin.max()):.3g})" if fin.size else ""
+        im = _maps_row(fig, row, xyz, v, column, norm, centre, span, cell, row_title=f"{name}{best}: ")
+    _colorbar(fig, im, column, any((~np.isfinite(v)).any() for _, _, v in clouds))
+    fig.suptitle(S.cite(title), x=0.01, y=0.99, ha="left", va="top")
+    return S.save(fig, path)
 
 
+@S.styled
 def histograms(path: Path, rows: np.ndarray, columns: list[str], title: str) -> Path:
-    """One histogram per index column (finite values)."""
-    plt = _plt()
+    """One histogram per index column (finite values between the 0.5 and 99.5 percentiles; median dashed)."""
+    from matplotlib.ticker import MaxNLocator
+
     cols = [c for c in columns if not c.startswith("ee_") and c != "singular"]
-    n = len(cols)
-    ncol = 4
-    nrow = max(1, -(-n // ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 2.8 * nrow), squeeze=False)
-    for ax in axes.flat[n:]:
-        ax.axis("off")
-    for ax, c in zip(axes.flat, cols):
+    ncol = 3
+    nrow = max(1, -(-len(cols) // ncol))
+    fig, axes = S.panels(S.FULL_PX, 44 + 140 * nrow + 58 * (nrow - 1) + 36, nrow, ncol, top=44, bottom=36, left=60,
+                         wgap=62, hgap=58)
+    for ax in axes.flat[len(cols):]:
+        ax.set_visible(False)
+    for k, (ax, c) in enumerate(zip(axes.flat, cols)):
         v = rows[:, columns.index(c)]
         v = v[np.isfinite(v)]
         if v.size:
-            ax.hist(v, bins=50, color="tab:blue")
-        ax.set_title(LABELS.get(c, c), fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, path)
+            lo, hi = _limits(v, 0.5, 99.5)
+            ax.hist(v, bins=40, range=(lo, hi), histtype="stepfilled", color="#4c78a8", alpha=0.85)
+            ax.axvline(float(np.median(v)), color="k", lw=1, ls="--")
+            ax.set_title(SHORT.get(c, c))
+        else:
+            ax.set_title(f"{SHORT.get(c, c)}: no finite value")
+        ax.locator_params(axis="x", nbins=4)
+        ax.yaxis.set_major_locator(MaxNLocator(3, prune="lower"))  # the 0 count would sit on the first x label
+        if k % ncol == 0:
+            ax.set_ylabel("samples")
+    fig.suptitle(S.cite(title) + ": distribution of each index over the sampled workspace", x=0.01, y=0.995, ha="left",
+                 va="top")
+    return S.save(fig, path)
 
 
+@S.styled
 def slices(path: Path, slice_data: list[dict], columns: list[str], title: str) -> Path:
-    """Index envelopes along each sampled joint: min, mean and max over the other joints."""
-    plt = _plt()
-    cols = [c for c in KEY_COLUMNS if c in columns] or [c for c in columns if not c.startswith("ee_")][:6]
-    nj = len(slice_data)
-    fig, axes = plt.subplots(len(cols), nj, figsize=(3.2 * nj + 1, 2.2 * len(cols) + 0.8), squeeze=False)
-    for r, c in enumerate(cols):
+    """Per index, its mean along each joint (the other joints sampled), joints on a common 0-1 axis."""
+    cols = [c for c in KEY_COLUMNS if c in columns] or [c for c in columns if not c.startswith("ee_")][:8]
+    ncol = 4 if len(cols) > 4 else max(len(cols), 1)
+    nrow = max(1, -(-len(cols) // ncol))
+    height = 44 + 170 * nrow + 46 * (nrow - 1) + 78
+    fig, axes = S.panels(S.FULL_PX, height, nrow, ncol, top=44, bottom=78, left=60, wgap=58, hgap=46, sharex=True)
+    for ax in axes.flat[len(cols):]:
+        ax.set_visible(False)
+    handles = []
+    for k, (ax, c) in enumerate(zip(axes.flat, cols)):
         ci = columns.index(c)
         for j, s in enumerate(slice_data):
-            ax = axes[r, j]
-            x = s["x"]
-            ax.fill_between(x, s["min"][:, ci], s["max"][:, ci], color="tab:blue", alpha=0.25, lw=0)
-            ax.plot(x, s["mean"][:, ci], color="tab:blue", lw=1.2)
-            if r == len(cols) - 1:
-                ax.set_xlabel(s["joint"])
-            if j == 0:
-                ax.set_ylabel(c, fontsize=8)
-            ax.tick_params(labelsize=7)
-    fig.suptitle(title + " (band: min-max over the other joints; line: mean)")
-    fig.tight_layout()
-    return _save(fig, path)
+            x = np.asarray(s["x"], dtype=float)
+            span = (x.max() - x.min()) if x.size > 1 else 1.0
+            u = (x - x.min()) / span if span > 0 else np.zeros_like(x)
+            (h,) = ax.plot(u, s["mean"][:, ci], color=f"C{j % 10}", lw=1.4, marker="o" if x.size < 8 else None, ms=3)
+            if k == 0:
+                handles.append((h, s["joint"]))
+        ax.set_title(SHORT.get(c, c))
+        ax.locator_params(axis="y", nbins=4)
+        ax.set_xticks([0, 0.5, 1])
+        ax.set_xticklabels(["lower", "mid", "upper"])
+    fig.supxlabel("joint position within its sampled range (mean of the index over the other joints)", y=30 / height,
+                  va="bottom")
+    if handles:
+        fig.legend([h for h, _ in handles], [t for _, t in handles], loc="lower center", bbox_to_anchor=(0.5, 0),
+                   ncols=min(len(handles), 6), borderaxespad=0.2, handlelength=1.6)
+    fig.suptitle(S.cite(title) + ": index against each joint", x=0.01, y=0.995, ha="left", va="top")
+    return S.save(fig, path)

@@ -1,4 +1,5 @@
-"""Report-only plots made from the recorded simulation (PNG bytes, labelled, SI units).
+"""Report-only plots made from the recorded simulation (PNG bytes at the report's width,
+:mod:`sms_cli.report.figstyle`; labelled, SI units).
 
 * wheel momentum: ``h_i = I_s,i ω_i`` per wheel (N m s) from ``simulation.csv`` and the wheel
   inertias of the ``compile`` section, with the array momentum ``|Σ h_i a_i|`` (base frame);
@@ -10,28 +11,13 @@
 from __future__ import annotations
 
 import csv
-import io
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _png(fig) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight", metadata={"Software": None})
-    _plt().close(fig)
-    return buf.getvalue()
+from sms_cli.report import figstyle as S
 
 
 def read_topics(mcap_path: Path, topics: list[str]) -> dict[str, tuple[np.ndarray, list[dict]]]:
@@ -47,6 +33,7 @@ def read_topics(mcap_path: Path, topics: list[str]) -> dict[str, tuple[np.ndarra
     return {t: (np.array(ts), rows) for t, (ts, rows) in out.items() if ts}
 
 
+@S.styled
 def wheel_momentum_png(csv_path: Path, wheels: list[dict[str, Any]]) -> bytes | None:
     """Per-wheel stored momentum and the array's momentum magnitude against time."""
     if not wheels or not csv_path.exists():
@@ -59,25 +46,24 @@ def wheel_momentum_png(csv_path: Path, wheels: list[dict[str, Any]]) -> bytes | 
     h = np.array([[float(r[f"wheel_speed_{w['name']}"]) * w["spin_inertia_kgm2"] for w in wheels] for r in rows])
     axes = np.array([w["axis_base"] for w in wheels], dtype=float)
     h_vec = h @ axes
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(8, 3.4))
+    fig, ax = S.new(S.FULL_PX, 300)
     for k, w in enumerate(wheels):
-        ax.plot(t, h[:, k], lw=1, label=f"{w['name']} (capacity ±{w['spin_inertia_kgm2'] * w['max_speed_rad_s']:.3g})")
+        ax.plot(t, h[:, k], lw=1.1, label=f"{w['name']} (capacity ±{w['spin_inertia_kgm2'] * w['max_speed_rad_s']:.3g})")
     ax.plot(t, np.linalg.norm(h_vec, axis=1), color="k", lw=1.6, label="|Σ h_i a_i| (array, base frame)")
-    ax.set(xlabel="time (s)", ylabel="wheel momentum (N m s)", title="Reaction-wheel momentum h = I_s ω")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    return _png(fig)
+    ax.set(xlabel="time (s)", ylabel="wheel momentum (N m s)", title="Reaction-wheel momentum h = I_s ω per wheel and of the array",
+           xlim=(float(t[0]), float(t[-1])))
+    fig.legend(loc="outside right upper")
+    return S.render(fig)
 
 
+@S.styled
 def joint_tracking_png(topics: dict[str, tuple[np.ndarray, list[dict]]]) -> bytes | None:
     """Joint positions (solid) and references (dashed) against time."""
     if "/joints/position" not in topics:
         return None
     t, pos = topics["/joints/position"]
     names = list(pos[0])
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+    fig, ax = S.new(S.FULL_PX, 300)
     for k, n in enumerate(names):
         ax.plot(t, [p[n] for p in pos], color=f"C{k % 10}", lw=1.3, label=n)
     if "/joints/reference" in topics:
@@ -85,20 +71,20 @@ def joint_tracking_png(topics: dict[str, tuple[np.ndarray, list[dict]]]) -> byte
         for k, n in enumerate(names):
             if n in ref[0]:
                 ax.plot(tr, [r[n] for r in ref], color=f"C{k % 10}", lw=1, ls="--")
-    ax.set(xlabel="time (s)", ylabel="joint position (rad or m)", title="Joint tracking (solid: measured, dashed: reference)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=3)
-    return _png(fig)
+    ax.set(xlabel="time (s)", ylabel="joint position (rad or m)", title="Joint tracking (solid: measured, dashed: reference)",
+           xlim=(float(t[0]), float(t[-1])))
+    fig.legend(loc="outside right upper")
+    return S.render(fig)
 
 
+@S.styled
 def ee_path_png(topics: dict[str, tuple[np.ndarray, list[dict]]]) -> bytes | None:
     """End-effector and base-origin paths in the world frame (3-D, equal axes)."""
     if "/ee/position" not in topics:
         return None
     _, ee = topics["/ee/position"]
     P = np.array([[p["x"], p["y"], p["z"]] for p in ee])
-    plt = _plt()
-    fig = plt.figure(figsize=(7, 5.6))
+    fig = S.new_figure(S.HALF_PX, 440)
     ax = fig.add_subplot(111, projection="3d")
     ax.plot(*P.T, color="crimson", lw=1.5, label="end effector")
     ax.scatter(*P[0], color="crimson", marker="o", s=25, label="EE start")
@@ -114,9 +100,8 @@ def ee_path_png(topics: dict[str, tuple[np.ndarray, list[dict]]]) -> bytes | Non
     span = max(float(np.max(A.max(axis=0) - A.min(axis=0))), 1e-3)
     for setter, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
         setter(m - span / 2 * 1.1, m + span / 2 * 1.1)
-    ax.set_box_aspect((1, 1, 1))
-    ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
+    S.box3d(ax)
     travel = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1))) if len(P) > 1 else 0.0
-    ax.set_title(f"End-effector path, world frame (length {travel:.3g} m)", fontsize=10)
-    ax.legend(fontsize=7, loc="upper left")
-    return _png(fig)
+    ax.set_title(f"End-effector path, world frame (length {travel:.3g} m)")
+    fig.legend(loc="outside lower center", ncols=2)
+    return S.render(fig)

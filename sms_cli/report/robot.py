@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sms_cli.report import figstyle as S
+
 
 def _rpy(r: float, p: float, y: float) -> np.ndarray:
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
@@ -66,14 +68,9 @@ def _cylinder_faces(radius: float, length: float, n: int = 18) -> list[np.ndarra
     return sides + [top, bot]
 
 
+@S.styled
 def draw_robot(sm, target: Path | None = None, title: str = "") -> bytes:
     """PNG bytes of the robot at ``sm.q0`` (also written atomically to ``target`` when given)."""
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import pinocchio as pin
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
@@ -88,7 +85,7 @@ def draw_robot(sm, target: Path | None = None, title: str = "") -> bytes:
         M = sm.data.oMf[fid]
         return M.rotation.copy(), M.translation.copy()
 
-    fig = plt.figure(figsize=(7.5, 6.2))
+    fig = S.new_figure(S.HALF_PX, 470)
     ax = fig.add_subplot(111, projection="3d")
     pts = []
     colors = {"box": "#8fa9c9", "cylinder": "#d9a86c", "sphere": "#9fc98f"}
@@ -135,17 +132,10 @@ def draw_robot(sm, target: Path | None = None, title: str = "") -> bytes:
     mid = (P.max(axis=0) + P.min(axis=0)) / 2
     for setter, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
         setter(m - span / 2, m + span / 2)
-    ax.set_box_aspect((1, 1, 1))
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.view_init(elev=22, azim=-55)
-    ax.set_title(title or f"{sm.name}: initial configuration (world frame; base triad x/y/z = red/green/blue)", fontsize=9)
-    ax.legend(loc="upper left", fontsize=7)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight", metadata={"Software": None})
-    plt.close(fig)
-    data = buf.getvalue()
+    S.box3d(ax)
+    ax.set_title(title or f"{sm.name}: initial configuration, world frame")
+    fig.legend(loc="outside lower center", ncols=2, title="base triad x, y, z: red, green, blue")
+    data = S.render(fig)
     if target is not None:
         from sms_cli.results import write_bytes_atomic
 

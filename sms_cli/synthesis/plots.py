@@ -1,4 +1,4 @@
-"""Pole map of the synthesised loops with the requested region drawn (PNG, rad/s)."""
+"""Pole map of the synthesised loops with the requested region drawn (PNG at the report's width, rad/s)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sms_cli.results import atomic_path
+from sms_cli.report import figstyle as S
 from sms_cli.synthesis.regions import PoleRegion
 
 
@@ -32,15 +32,12 @@ def _region_patch(ax, reg: PoleRegion, color: str, label: str) -> None:
     ax.plot(xs + [xs[0]], ys + [ys[0]], color=color, lw=0.8)
 
 
+@S.styled
 def plot_pole_map(poles: list[dict], regions: dict[str, PoleRegion], target: Path, title: str) -> Path:
     """``poles``: per linearisation {label, controller: [...], observer: [...], ndo: [...]};
-    ``regions``: {'controller': region, 'observer': region} (observer optional)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    ``regions``: {'controller': region, 'observer': region} (observer optional). Left: every pole and
+    region; right: zoom on the controller region (the poles a reviewer checks against it)."""
+    fig, axes = S.new(S.FULL_PX, 380, 1, 2)
     colors = {"controller": "tab:blue", "observer": "tab:orange", "ndo": "tab:green"}
     for ax, zoom in zip(axes, (False, True)):
         for name, reg in regions.items():
@@ -48,22 +45,19 @@ def plot_pole_map(poles: list[dict], regions: dict[str, PoleRegion], target: Pat
         for key, marker in (("controller", "x"), ("observer", "+"), ("ndo", "^")):
             vals = np.concatenate([np.asarray(p.get(key, []), dtype=complex) for p in poles]) if poles else []
             if len(vals):
-                ax.scatter(np.real(vals), np.imag(vals), marker=marker, s=28, color=colors[key],
-                           label=f"{key} poles ({len(poles)} linearisation(s))")
+                ax.scatter(np.real(vals), np.imag(vals), marker=marker, s=30, color=colors[key], rasterized=True,
+                           label=f"{key} poles ({len(poles)} linearisation{'s' * (len(poles) != 1)})")
         ax.axvline(0, color="0.5", lw=0.6)
         ax.axhline(0, color="0.5", lw=0.6)
         ax.set_xlabel("Re s (1/s)")
         ax.set_ylabel("Im s (rad/s)")
+        ax.locator_params(nbins=5)
         if zoom and "controller" in regions:
             r = regions["controller"].radius * 1.3
             ax.set_xlim(-r, 0.15 * r)
             ax.set_ylim(-r, r)
             ax.set_title("zoom on the controller region")
         else:
-            ax.set_title(title)
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7, loc="upper left")
-    with atomic_path(target) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    return target
+            ax.set_title(S.cite(title))
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
+    return S.save(fig, target)
