@@ -35,6 +35,7 @@ from sms_cli.errors import InputError, NumericalError, SmsError
 from sms_cli.mission.load import LoadedMission, load_mission, load_mission_dict, load_mission_text
 from sms_cli.model.system import SystemModel
 from sms_cli.synthesis.gains_io import GainsFile
+from sms_cli.synthesis.verify import Check
 
 #: A mission: loaded (``load_mission``, ``load_mission_text``, ``load_mission_dict``) or the path of its file.
 MissionLike = Union[LoadedMission, str, os.PathLike]
@@ -267,17 +268,6 @@ def analyze(mission: MissionLike, out: PathLike | None = None, *, plots: bool | 
 
 
 @dataclass(frozen=True)
-class Check:
-    """One verification check of synthesised gains (``value`` against ``limit``, in the check's unit)."""
-
-    name: str
-    passed: bool
-    detail: str
-    value: float | None = None
-    limit: float | None = None
-
-
-@dataclass(frozen=True)
 class SynthesisResult:
     """What ``synthesize`` computed: gains, verified after the solve.
 
@@ -288,7 +278,7 @@ class SynthesisResult:
 
     law: str  #: ``lmi``, ``pd``, ``lqr`` or ``smc``
     verified: bool  #: every check passed
-    checks: list[Check]
+    checks: list[Check]  #: each check: ``name``, ``passed``, ``detail``, ``value`` against ``limit`` (in the check's unit)
     gains: GainsFile
     gamma: float | None  #: the LMI's guaranteed bound γ on the tracking-error energy (``lmi`` only)
     poles: list[dict[str, Any]]  #: closed-loop poles per linearisation (rad/s, complex arrays) with their ``label``

@@ -250,12 +250,16 @@ def test_an_unverified_synthesis_raises_with_its_gains(empty_cwd_and_tmp):
 # ------------------------------------------------------------------ stages: out= writes what the CLI writes
 
 
+def cli_results(cli_args: list, out: Path) -> dict:
+    """results.json after ``sms <cli_args> -o out``."""
+    r = run_cli(*cli_args, "-o", out)
+    assert r.exit_code == 0, r.output
+    return json.loads((out / "results.json").read_text())
+
+
 def _cli_and_api(cli_args: list, api_call, tmp_path: Path, name: str) -> tuple[Path, Path, dict, object]:
     cli, api = tmp_path / f"{name}_cli", tmp_path / f"{name}_api"
-    r = run_cli(*cli_args, "-o", cli)
-    assert r.exit_code == 0, r.output
-    result = api_call(api)
-    return cli, api, json.loads((cli / "results.json").read_text()), result
+    return cli, api, cli_results(cli_args, cli), api_call(api)
 
 
 @pytest.mark.parametrize("stage", ["budget", "analyze", "synthesize", "simulate"])
@@ -308,9 +312,7 @@ def test_out_records_what_the_cli_records(tmp_path):
 
 def test_budget_figures_are_the_clis(tmp_path):
     mission = MISSIONS / "hipparcos_leo.yaml"
-    r = run_cli("budget", mission, "-o", tmp_path)
-    assert r.exit_code == 0, r.output
-    cli = json.loads((tmp_path / "results.json").read_text())["budget"]
+    cli = cli_results(["budget", mission], tmp_path)["budget"]
     b = sms.budget(mission)
     assert b.dv_m_s == cli["totals"]["dv_m_s"] and b.propellant_kg == cli["totals"]["propellant_kg"]
     assert b.wet_mass_kg == cli["mass"]["wet_mass_kg"] and b.closes is cli["mass"]["closes"] is True
@@ -330,9 +332,7 @@ def test_a_budget_with_several_scenarios_asks_for_one():
 
 def test_analysis_figures_are_the_clis(tmp_path):
     mission = analysis_mission(tmp_path)
-    r = run_cli("analyze", mission, "-o", tmp_path / "cli", "--no-progress")
-    assert r.exit_code == 0, r.output
-    cli = json.loads((tmp_path / "cli" / "results.json").read_text())["analysis"]
+    cli = cli_results(["analyze", mission, "--no-progress"], tmp_path / "cli")["analysis"]
     a = sms.analyze(mission)
     assert a.samples == cli["samples"] == 27 and a.method == "grid"
     nominal = cli["variants"]["nominal"]
@@ -349,9 +349,7 @@ def test_analysis_figures_are_the_clis(tmp_path):
 
 def test_synthesis_figures_are_the_clis(tmp_path):
     mission = MISSIONS / "caldera_s1_synthesized.yaml"
-    r = run_cli("synthesize", mission, "-o", tmp_path)
-    assert r.exit_code == 0, r.output
-    cli = json.loads((tmp_path / "results.json").read_text())["synthesis"]
+    cli = cli_results(["synthesize", mission], tmp_path)["synthesis"]
     s = sms.synthesize(mission)
     assert s.law == "smc" and s.verified and s.gamma is None
     assert [c.name for c in s.checks] == [c["name"] for c in cli["verification"]["checks"]]
@@ -388,9 +386,7 @@ def test_simulation_figures_and_trace_are_the_clis(engine, tmp_path):
         mission = tmp_path / "s1_short.yaml"
         mission.write_text(short_slew_text(20).replace("extends: caldera_smallsat.yaml",
                                                        f"extends: {MISSIONS / 'caldera_smallsat.yaml'}"))
-    r = run_cli("simulate", mission, "-o", tmp_path / "cli", "--no-progress")
-    assert r.exit_code == 0, r.output
-    cli = json.loads((tmp_path / "cli" / "results.json").read_text())["simulate"]
+    cli = cli_results(["simulate", mission, "--no-progress"], tmp_path / "cli")["simulate"]
     res = sms.simulate(mission)
     assert res.section["timing"]["engine"].startswith(engine) and cli["timing"]["engine"] == res.section["timing"]["engine"]
     o = cli["overall"]
