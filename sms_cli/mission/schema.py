@@ -45,7 +45,7 @@ class Mission(StrictModel):
         default_factory=list, description="pass/fail requirements on results.json metrics (sms run, sms check): "
                                           "{name, metric: dotted path, max | min | equals (+ tol), unit, stage}")
     synthesis: SynthesisSpec | None = Field(
-        None, description="controller/observer gain synthesis (sms synthesize): seed 004 LMI, PD, LQR or SMC")
+        None, description="controller/observer gain synthesis (sms synthesize): the LMI of Kraiem (2022), PD, LQR or SMC")
 
     @model_validator(mode="after")
     def _unique_names(self):
