@@ -26,21 +26,26 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
 from sms_cli.analysis.modal import LinearModel
 from sms_cli.errors import InputError, NumericalError, SmsError
-from sms_cli.mission.load import LoadedMission, load_mission, load_mission_dict, load_mission_text
+from sms_cli.mission.load import (
+    LoadedMission,
+    load_mission,
+    load_mission_dict,
+    load_mission_text,
+)
 from sms_cli.model.system import SystemModel
 from sms_cli.synthesis.gains_io import GainsFile
 from sms_cli.synthesis.verify import Check
 
 #: A mission: loaded (``load_mission``, ``load_mission_text``, ``load_mission_dict``) or the path of its file.
-MissionLike = Union[LoadedMission, str, os.PathLike]
+MissionLike = LoadedMission | str | os.PathLike
 #: A folder (a results folder is created when missing).
-PathLike = Union[str, os.PathLike]
+PathLike = str | os.PathLike
 
 
 def _loaded(mission: MissionLike) -> LoadedMission:
@@ -73,7 +78,7 @@ def _written(out: Path | None, names: list[str]) -> list[Path]:
 # ------------------------------------------------------------------ compile
 
 
-def compile(mission: MissionLike, *, strict: bool = False) -> SystemModel:  # noqa: A001 - sms.compile, as `sms compile`
+def compile(mission: MissionLike, *, strict: bool = False) -> SystemModel:
     """Compile a mission's robot, wheels, appendages, springs and payloads into a ``SystemModel``,
     with the checks of ``sms compile`` (the ``simulation:`` section's joint and payload names too).
 
@@ -298,7 +303,11 @@ def synthesize(mission: MissionLike, out: PathLike | None = None, *, plots: bool
     as the CLI does, marked unverified). Raises ``InputError``.
     """
     from sms_cli.results import ResultsDir
-    from sms_cli.synthesis.stage import check_verified, synthesize_mission, write_synthesis
+    from sms_cli.synthesis.stage import (
+        check_verified,
+        synthesize_mission,
+        write_synthesis,
+    )
 
     loaded, folder = _loaded(mission), _folder(out)
     record = (lambda s: ResultsDir(folder).update("synthesis", s)) if folder is not None else None
@@ -377,7 +386,11 @@ def simulate(mission: MissionLike, out: PathLike | None = None, *, progress: boo
     Raises ``NumericalError`` when the simulation diverges; its ``result`` attribute is this
     function's result for what ran (written to ``out`` first, as the CLI does). Raises ``InputError``.
     """
-    from sms_cli.sim.stage import SimulationDiverged, record_simulation, simulate_mission
+    from sms_cli.sim.stage import (
+        SimulationDiverged,
+        record_simulation,
+        simulate_mission,
+    )
 
     loaded, folder = _loaded(mission), _folder(out)
     gains = None if gains_dir is None else Path(gains_dir)

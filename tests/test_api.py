@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import DATA, MISSIONS, ROOT, run_cli
 
 import sms_cli as sms
-from conftest import DATA, MISSIONS, ROOT, run_cli
 
 SLEW = MISSIONS / "caldera_s1_slew.yaml"
 #: fields that differ between two runs of the same mission (wall-clock times) or name the folder
@@ -185,7 +185,7 @@ def test_the_quickstart_example_runs_and_writes_nothing(tmp_path):
     cwd, tmp = tmp_path / "cwd", tmp_path / "tmp"
     cwd.mkdir()
     tmp.mkdir()
-    r = subprocess.run([sys.executable, str(ROOT / "examples" / "api_quickstart.py")], cwd=cwd, capture_output=True,
+    r = subprocess.run([sys.executable, str(ROOT / "examples" / "api_quickstart.py")], cwd=cwd, capture_output=True, check=False,
                        text=True, env={**os.environ, "TMPDIR": str(tmp)}, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "caldera_s1_slew: mass 220.00 kg, 13 DoF (base 6, wheels 4, arm 3, flexible modes 0)" in r.stdout
@@ -327,7 +327,7 @@ def test_a_budget_with_several_scenarios_asks_for_one():
     b = sms.budget(MISSIONS / "budget_tradeoff.yaml")
     assert len(b.scenarios) > 1 and all(isinstance(s.dv_m_s, float) for s in b.scenarios)
     with pytest.raises(ValueError, match="scenarios"):
-        b.dv_m_s
+        _ = b.dv_m_s
 
 
 def test_analysis_figures_are_the_clis(tmp_path):

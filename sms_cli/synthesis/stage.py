@@ -13,9 +13,10 @@ Laws: ``lmi`` (seed 004 NDI + observer, acceleration gains per actuator), ``pd``
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
