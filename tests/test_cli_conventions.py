@@ -212,8 +212,6 @@ def test_simulate_unknown_joint_leaves_no_recording(tmp_path):
     assert not (tmp_path / "out" / "simulation.mcap").exists()
 
 
-@pytest.mark.xfail(strict=True, reason="sms_cli/sim/stage.py opens the recording before Simulation() reads gains.yaml: "
-                                       "build the Simulation before `with rec:` (stage module, not this change's)")
 def test_simulate_without_gains_leaves_no_recording(tmp_path):
     out = tmp_path / "out"
     r = run_cli("simulate", MISSIONS / "caldera_s1_synthesized.yaml", "-o", out)
@@ -350,3 +348,12 @@ def test_completion_script_loads_in_bash():
     script = subprocess.run([SMS, "--show-completion", "bash"], capture_output=True, text=True, timeout=60).stdout
     r = subprocess.run(["bash", "-c", script + "\ncomplete -p sms"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and "_sms_completion" in r.stdout, r.stderr
+
+
+def test_simulate_compiled_engine_refusal_leaves_no_recording(tmp_path):
+    m = tmp_path / "m.yaml"
+    m.write_text(f"extends: {MISSIONS / 'caldera_s1_slew.yaml'}\nname: caldera_s1_slew\nsimulation: {{engine: compiled}}\n")
+    out = tmp_path / "out"
+    r = run_cli("simulate", m, "-o", out)
+    assert r.exit_code == 2 and "the compiled engine cannot run this mission" in r.stderr, r.output
+    assert not (out / "simulation.mcap").exists()

@@ -215,19 +215,23 @@ class Simulation:
 
         return unsupported_reason(self.sm, self.spec, self.att_spec)
 
-    def run(self) -> SimResult:
-        """Run the mission with the engine ``simulation.engine`` asks for (see SimulationSpec)."""
+    def check_engine(self) -> None:
+        """InputError (exit 2) when ``engine: compiled`` is asked for a mission the compiled loop cannot run."""
         from sms_cli.errors import InputError, Problem
 
-        if self.compiled_loop:
-            from sms_cli.sim.compiled.runner import CompiledSimulation
-
-            return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
-        if self.spec.engine == "compiled":
+        if not self.compiled_loop and self.spec.engine == "compiled":
             why = self.compiled_unsupported()
             raise InputError(problems=[Problem(f"the compiled engine cannot run this mission: {why}",
                                                field="simulation.engine",
                                                hint="write engine: auto (the Python loop runs it) or python")])
+
+    def run(self) -> SimResult:
+        """Run the mission with the engine ``simulation.engine`` asks for (see SimulationSpec)."""
+        self.check_engine()
+        if self.compiled_loop:
+            from sms_cli.sim.compiled.runner import CompiledSimulation
+
+            return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
         return self.run_python()
 
     # ------------------------------------------------------------------ main loop

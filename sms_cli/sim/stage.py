@@ -142,9 +142,13 @@ def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path,
     rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
     base = _base(loaded)
     result = None
+    # built before the recording opens: its input errors (a missing gains.yaml, an engine that cannot
+    # run the mission) leave no recording behind
+    simulation = Simulation(sm, spec, rec, progress, results_dir=gains_dir, mission_dir=loaded.path.parent)
+    simulation.check_engine()
     try:
         with rec:  # once recording, a signal is held until the outputs are written
-            result = Simulation(sm, spec, rec, progress, results_dir=gains_dir, mission_dir=loaded.path.parent).run()
+            result = simulation.run()
             rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
             section = _write_outputs(results, result, sm, spec, mcap_path, base)
     except KeyboardInterrupt:
