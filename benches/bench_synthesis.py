@@ -8,7 +8,7 @@ fails). Every result is checked by ``verify_lmi`` (the solver status is never tr
 Each sweep case runs in its own process with a wall-clock limit (--limit, default 600 s): the
 sweep stops at the first size that does not solve within it.
 
-Seed 004 Table 4.3 (L2885–2887; YALMIP + MOSEK on an Intel i7) is printed alongside with a
+Kraiem 2022 Table 4.3 (L2885–2887; YALMIP + MOSEK on an Intel i7) is printed alongside with a
 ratio column. Caveat: the thesis's "size of T" is the number of tasks (linearisations) of the
 chapter 4 problem, each a 106×106 LMI (4.27) (L2881); here size is the number of LMI rows of one
 linearisation. Both grow the dense Schur complement the solvers factor, but the ratio compares
@@ -46,7 +46,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 SWEEP_JSON = ROOT / "benches" / "data" / "synthesis_sweep.json"
 
-# seed 004 Table 4.3: size of the task set T → (MOSEK resolution time s, iterations)
+# Kraiem 2022 Table 4.3: size of the task set T → (MOSEK resolution time s, iterations)
 THESIS_T43 = {10: (35.0, 27), 20: (130.0, 53), 30: (122.0, 33), 40: (186.0, 38), 50: (245.0, 39),
               80: (426.0, 38), 100: (550.0, 39), 154: (833.0, 43)}
 # (n_q, n_modes) → size 3 n_q + 2 n_modes + 3
@@ -223,7 +223,7 @@ def print_table(data: dict) -> None:
         print(f"{r['size']:>5}{r['n_q']:>5}{r['n_modes']:>6}{r['variables']:>6}{r['seconds']:>10.2f}"
               f"{r['gamma']:>10.5g}  {str(r['verified']):<9} {r['solver'] + tag:<46}"
               f"{'' if th is None else format(th, '8.0f')}{ratio:>8}{gc}")
-    print("T4.3 s: seed 004 Table 4.3 (YALMIP + MOSEK, Intel i7), log–log interpolated at the same nominal size; "
+    print("T4.3 s: Kraiem 2022 Table 4.3 (YALMIP + MOSEK, Intel i7), log–log interpolated at the same nominal size; "
           "its size is the number of tasks |T| (each a 106×106 LMI), not LMI rows (see the module docstring).")
     print_tasks(data)
     if data.get("pulsar"):

@@ -1,4 +1,4 @@
-"""Kinematic indices (seed 004 §3.2) against identities and independent computations.
+"""Kinematic indices (Kraiem 2022 §3.2) against identities and independent computations.
 
 Oracles: the Frobenius split (K^m)² + (K^r)² = 1; invariance to the base pose; a finite-difference
 Jacobian of the free-floating motion obtained by integrating the zero-momentum constraint with
@@ -50,7 +50,7 @@ def demeter_study(demeter):
 
 def test_demeter_study_size(demeter_study):
     _, _, samples, res = demeter_study
-    assert samples.shape == (6859, 3)  # 19^3, seed 004 L1946
+    assert samples.shape == (6859, 3)  # 19^3, Kraiem 2022 L1946
     assert samples[:, 0].min() == 0.0 and samples[:, 0].max() == pytest.approx(np.pi)  # half workspace
 
 
@@ -66,7 +66,7 @@ def test_km_kr_complementary(mission):
 def test_doubling_wheel_inertia_lowers_km_everywhere(demeter_study):
     _, _, _, (nom, dbl) = demeter_study
     assert np.all(dbl["K_m"] < nom["K_m"])
-    # seed 004 reports the worst case 0.65 -> 0.4; our assumed Demeter geometry gives 0.73 -> 0.47
+    # Kraiem 2022 reports the worst case 0.65 -> 0.4; our assumed Demeter geometry gives 0.73 -> 0.47
     assert 0.6 < nom["K_m"].max() < 0.8 and 0.35 < dbl["K_m"].max() < 0.55
 
 

@@ -1,4 +1,4 @@
-"""Linear modal analysis of the flexible system (pulsar_simple: two panels, seed 004 Table 3.3)."""
+"""Linear modal analysis of the flexible system (pulsar_simple: two panels, Kraiem 2022 Table 3.3)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from conftest import MISSIONS, compile_path
 from sms_cli.analysis.modal import coupled_modes, export, linearize
 from sms_cli.model.modal import coupled_frequencies
 
-# Seed 004 Table 3.3 (L2276-2283): clamped panel frequencies, rad/s, each panel has the same five.
+# Kraiem 2022 Table 3.3 (L2276-2283): clamped panel frequencies, rad/s, each panel has the same five.
 CLAMPED = 2 * np.pi * np.array([0.16, 0.70, 1.08, 1.21, 3.05])
 
 

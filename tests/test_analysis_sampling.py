@@ -32,7 +32,7 @@ def test_periodic_joint_grid_skips_duplicate_end():
 def test_symmetry_halves_a_range():
     r = JointRange("yaw", -math.pi, math.pi, periodic=True).halved("upper", 0.0)
     assert (r.lower, r.upper, r.periodic) == (0.0, math.pi, False)
-    assert len(r.grid(19)) == 19 and r.grid(19)[-1] == pytest.approx(math.pi)  # seed 004: 19 values on [0, pi]
+    assert len(r.grid(19)) == 19 and r.grid(19)[-1] == pytest.approx(math.pi)  # Kraiem 2022: 19 values on [0, pi]
     with pytest.raises(ValueError):
         JointRange("x", 0, 1).halved("lower", 2.0)
 

@@ -30,7 +30,7 @@ def joint_sensed(t, q, qd):
 
 
 
-# ----------------------------------------------------------------------------- seed 001 joint PD
+# ----------------------------------------------------------------------------- Chevallard 2019 joint PD
 @pytest.mark.parametrize("kp,kd", [(1.0, 100.0), (0.7, 90.0), (0.5, 50.0)])  # Table 6.3 gain sets (L1114-1126)
 def test_cascaded_joint_pd_matches_the_closed_form_step_response(kp, kd):
     I = 120.0  # kg m² about the joint
@@ -68,7 +68,7 @@ def test_continuous_joint_error_is_wrapped():
     assert tau[0] == pytest.approx(math.radians(10))
 
 
-# ----------------------------------------------------------------------------- seed 003 joint SMC
+# ----------------------------------------------------------------------------- Ruggiero 2020 joint SMC
 def test_joint_smc_reaches_the_surface_in_time_then_slides_at_rate_lambda():
     I, k, lam = 0.02, 0.01, 0.3  # k/I = 0.5 rad/s²
     law = JointSMC(k, lam, smoothing="sign")
@@ -177,7 +177,7 @@ def test_arm_dynamics_free_floating_matches_forward_dynamics(arm3):
     assert np.all(np.linalg.eigvalsh(M) > 0)
 
 
-# ----------------------------------------------------------------------------- seed 000 joint SMC
+# ----------------------------------------------------------------------------- Caldera 2019 joint SMC
 def test_smc_computed_torque_surface_obeys_its_reaching_law(arm3):
     """ṡ = −(k1 − λ) s − c tanh(μ s) per joint (exact model), critically damped k1² = 4 k2."""
     k1 = np.array([0.8, 1.0, 1.2])

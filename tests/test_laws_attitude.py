@@ -236,13 +236,13 @@ def test_mrp_feedback_lyapunov_rate_is_minus_P_omega_squared():
         assert dV == pytest.approx(-P * w @ w, rel=1e-5, abs=1e-12)
 
 
-# ----------------------------------------------------------------------------- seed 000 SMC
+# ----------------------------------------------------------------------------- Caldera 2019 SMC
 def test_smc_surface_follows_the_closed_form_reaching_law():
     """Exact model: each s_i obeys ṡ = −c tanh(μ s), so sinh(μ s(t)) = sinh(μ s(0)) e^{−cμt}."""
     J = np.array([[50.0, 1.0, -0.5], [1.0, 25.0, 0.3], [-0.5, 0.3, 25.0]])
     k, c, mu = 0.1, 0.01, 10.0
     law = SlidingModeAttitude(k, c, mu, RigidBody(J))
-    qref = np.array([0.15849365, 0.59150635, 0.15849365, 0.77451905])  # Z-Y-X [π/3]³ (seed 000 S1)
+    qref = np.array([0.15849365, 0.59150635, 0.15849365, 0.77451905])  # Z-Y-X [π/3]³ (Caldera 2019 S1)
     wr = np.array([0.0, 0.01, 0.0])
 
     def ref(t):
@@ -286,7 +286,7 @@ def test_smc_printed_signs_of_seed_000_diverge():
             assert final < math.radians(0.5)
 
 
-# ----------------------------------------------------------------------------- seed 003 twisting
+# ----------------------------------------------------------------------------- Ruggiero 2020 twisting
 def test_twisting_reaches_the_surface_within_its_time_bound_and_stays_bounded():
     J = np.diag([0.153, 0.143, 0.162])  # Astrobee (nasa/astrobee iss.config)
     k1, k2, lam = 0.05, 0.02, 0.5
@@ -318,7 +318,7 @@ def test_twisting_reaches_the_surface_within_its_time_bound_and_stays_bounded():
     assert qv[10.0] / qv[2.0] == pytest.approx(math.exp(-0.5 * lam * 8.0), rel=0.03)
 
 
-# ----------------------------------------------------------------------------- seed 003 backstepping
+# ----------------------------------------------------------------------------- Ruggiero 2020 backstepping
 class VaryingBody:
     """J(t) = J0 + sin(0.3 t) ΔJ, the thesis's configuration-dependent inertia, as a body model."""
 
@@ -386,7 +386,7 @@ def _rot(axis, angle):
 
 
 def test_backstepping_slews_180_degrees_faster_than_twisting_on_the_same_body():
-    """Seed 003's ranking (L996-1004, R4/G3): backstepping reaches the target before twisting
+    """Ruggiero 2020's ranking (L996-1004, R4/G3): backstepping reaches the target before twisting
     (near-180° yaw slew, Astrobee inertia, comparable peak torques)."""
     J = np.diag([0.153, 0.143, 0.162])
     ref = AttitudeRef(qexp([0, 0, 1], math.radians(179)))

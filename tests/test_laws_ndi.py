@@ -1,4 +1,4 @@
-"""Seed 004 NDI + observer: the inversion makes the actuator accelerations equal the commands
+"""Kraiem 2022 NDI + observer: the inversion makes the actuator accelerations equal the commands
 (closed-form error dynamics), and the observer recovers the modal states it does not measure."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Model quantities the laws use, against independent computations (Pinocchio's centroidal
-composite inertia, Basilisk's wheel momentum h_s), and a seed 000 S1 run on the SystemModel."""
+composite inertia, Basilisk's wheel momentum h_s), and a Caldera 2019 S1 run on the SystemModel."""
 
 from __future__ import annotations
 

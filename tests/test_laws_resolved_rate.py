@@ -1,4 +1,4 @@
-"""Generalized-Jacobian resolved rate (seed 001) against oracles: the damped least-squares
+"""Generalized-Jacobian resolved rate (Chevallard 2019) against oracles: the damped least-squares
 identity, and the exponential decay of the end-effector error at rate K on a free-floating arm
 integrated with RKMK4 and the SystemModel's forward dynamics."""
 

@@ -79,7 +79,7 @@ def test_modal_energy_conserved_without_damping(tmp_path):
 
 
 def test_participation_exceeding_link_inertia_is_reported(tmp_path):
-    """Seed 004 App. B panel inertia (17, 1250, 1233) about the CoM cannot carry Table 3.3's modes
+    """Kraiem 2022 App. B panel inertia (17, 1250, 1233) about the CoM cannot carry Table 3.3's modes
     (Σ L_Rx² = 1253 kg m² > 17 + 61·3.8447² ≈ 919): the compiler warns; the shipped inertia passes."""
     from conftest import MISSIONS, ROOT
 

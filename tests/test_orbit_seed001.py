@@ -1,4 +1,4 @@
-"""Seed 001 (Chevallard 2019) ΔV / propellant / duration tables, with the constants it really used.
+"""Chevallard 2019 ΔV / propellant / duration tables, with the constants it really used.
 
 Every entry that reference/notes/001_chevallard.md marks reproducible is recomputed with the
 sms orbit code and compared at half a unit of its last printed digit. The entries the thesis

@@ -10,7 +10,7 @@ Sources (each number below is compared at half a unit of its last printed digit)
   28.548 m/s: its own burn time uses 28.548.)
 - Curtis-style bi-elliptic example (μ = 398 600): circular 7200 km → 125 000 km via 190 000 km:
   bi-elliptic 3.9626 km/s in 129.19 h, Hohmann 3.9878 km/s in 23.49 h.
-- Wikipedia, "Sun-synchronous orbit": a = 7200 km gives i ≈ 98.7°; seed 001 Table 2.1: ERS-1
+- Wikipedia, "Sun-synchronous orbit": a = 7200 km gives i ≈ 98.7°; Chevallard 2019 Table 2.1: ERS-1
   (742 × 791 km, a sun-synchronous satellite) at 98.5°.
 """
 

@@ -1,4 +1,4 @@
-"""Thesis scenarios through the CLI: seed 000 (Caldera) bands and seed 003 (Ruggiero) rankings,
+"""Thesis scenarios through the CLI: Caldera 2019 bands and Ruggiero 2020 rankings,
 the MCAP each run leaves, and a diverging run that stops cleanly with exit code 3."""
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def test_diverging_simulation_exits_3_and_keeps_the_recording(tmp_path):
 
 
 def test_seed003_torque_free_body_rotates_against_the_arm(tmp_path):
-    """Seed 003 R1 (L664-668): with no attitude control, deploying the arm (joint 1 about −y from 180° to
+    """Ruggiero 2020 R1 (L664-668): with no attitude control, deploying the arm (joint 1 about −y from 180° to
     0°, i.e. the arm turns by +π about +y) turns the body the other way about y, momentum staying zero."""
     import pinocchio as pin
 

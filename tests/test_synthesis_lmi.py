@@ -1,4 +1,4 @@
-"""LMI synthesis (seed 004 Prop. 3.3.3.1 and §4.2.5) against oracles that cannot be tuned:
+"""LMI synthesis (Kraiem 2022 Prop. 3.3.3.1 and §4.2.5) against oracles that cannot be tuned:
 closed-form LQR, the exactness of single LMI regions, analytic gain bounds implied by a pole
 region, the exact worst-case cost (observability Gramian) and a linear simulation."""
 

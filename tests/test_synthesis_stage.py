@@ -128,7 +128,7 @@ def test_shipped_smc_missions_synthesise(tmp_path):
 def test_pulsar_simple_poles_and_gamma_against_simulation(tmp_path):
     """K, L of pulsar_simple: poles in the region at every linearisation, and ∫ε_cᵀε_c < γ² for
     initial observer errors on the boundary of E (and the tracking-box corners), by integrating
-    the linear closed loop of the reduced model (seed 004 (3.41)) with scipy's solve_ivp."""
+    the linear closed loop of the reduced model (Kraiem 2022 (3.41)) with scipy's solve_ivp."""
     from scipy.integrate import solve_ivp
 
     from sms_cli.mission.load import load_mission

@@ -7,7 +7,7 @@ Frames and conventions
 - Satellite frame R_sat = the base-link frame. The base attitude and position are the ones of
   the template configuration; every index is invariant to them (tested).
 - Pinocchio base velocity v_b = [v (base frame, base-link origin); ω (base frame)].
-- Zero total momentum (seed 004 (3.5)): the base rows of M give the total spatial momentum, so
+- Zero total momentum (Kraiem 2022 (3.5)): the base rows of M give the total spatial momentum, so
   M_bb v_b + M_bm q̇_m + M_br q̇_r = 0 and v_b = -M_bb⁻¹ [M_bm M_br] [q̇_m; q̇_r].
 - End-effector twist in R_sat, [v; ω] (linear first, velocity of the EE frame origin relative to
   the inertial frame, expressed in R_sat). J*_mEE (3.8) and J*_rEE map q̇_m, q̇_r to it.
@@ -18,7 +18,7 @@ Frames and conventions
 Index columns (SI units)
 - ee_x, ee_y, ee_z (m): EE origin in R_sat, from the base-link origin; ee_roll/pitch/yaw (rad): Z-Y-X
 Task rows: the EE linear velocity for arms with fewer than 6 joints (position task, the
-  ṙ_EE of seed 004 Fig. 3.7), the full twist otherwise; ``task`` overrides.
+  ṙ_EE of Kraiem 2022 Fig. 3.7), the full twist otherwise; ``task`` overrides.
 - mu_fixed: μ of the arm Jacobian on a fixed base (task rows)
 - mu_gjm: μ of the free-floating generalized Jacobian J*_mEE (task rows), wheels locked (q̇_r = 0)
 - gjm_cond: σ_min/σ_max of J*_mEE (task rows); singular: 1 when gjm_cond < tolerance (test (3.10))
@@ -430,7 +430,7 @@ def centroidal_columns(Ms: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Angular momentum about the system CoM per unit rate of the joints ``cols`` (base still), R_sat.
 
     From the base rows of M: h_O = M[3:6], p = M[0:3], h_G = h_O - c × p with the CoM
-    c = vee(M[3:6, 0:3]) / m. Equals -S_U J^{ω0} of seed 004 (3.15)-(3.16).
+    c = vee(M[3:6, 0:3]) / m. Equals -S_U J^{ω0} of Kraiem 2022 (3.15)-(3.16).
     """
     m = Ms[:, 0, 0]
     c = np.column_stack([Ms[:, 5, 1], Ms[:, 3, 2], Ms[:, 4, 0]]) / m[:, None]

@@ -23,7 +23,7 @@ JointEffort = Union[Torque, Force]
 #: Index groups ``analysis.indices`` may list (see ``sms_cli.analysis.indices``).
 INDEX_GROUPS = (
     "manipulability",  # fixed-base and free-floating (GJM) manipulability, singularity test (3.10)-(3.11)
-    "dynamic_manipulability",  # seed 004 (3.14), needs joint torque limits
+    "dynamic_manipulability",  # Kraiem 2022 (3.14), needs joint torque limits
     "base_indices",  # K^m_w0, K^r_w0 (3.18), needs joint and wheel speed limits
     "null_motion",  # mu^N (3.25), needs joint and wheel speed limits
     "joint_limits",  # normalised distance to the joint limits
@@ -35,7 +35,7 @@ IndexGroup = Literal[
 
 
 class SymmetrySpec(StrictModel):
-    """Sample half of one joint's range (the system is symmetric about a plane, seed 004 L1946)."""
+    """Sample half of one joint's range (the system is symmetric about a plane, Kraiem 2022 L1946)."""
 
     joint: str = Field(description="arm joint whose range is halved (e.g. the shoulder yaw joint)")
     keep: Literal["upper", "lower"] = Field("upper", description="which half of the range to keep")
@@ -70,7 +70,7 @@ class LimitOverrides(StrictModel):
     """Actuator limits used by the indices, overriding the URDF / wheel limits.
 
     A single value applies to every joint (or wheel); a mapping names them one by one.
-    ``joint_speed`` and ``wheel_speed`` give Q_max and Omega_max of seed 004 (3.17);
+    ``joint_speed`` and ``wheel_speed`` give Q_max and Omega_max of Kraiem 2022 (3.17);
     ``joint_torque`` gives the torque scaling of the dynamic manipulability (3.14).
     """
 
@@ -83,7 +83,7 @@ class VariantSpec(StrictModel):
     """A design variant analysed on the same samples as the nominal system."""
 
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$", description="used in file names")
-    wheel_inertia_scale: float = Field(1.0, gt=0, description="multiply every wheel's spin inertia (seed 004: 2)")
+    wheel_inertia_scale: float = Field(1.0, gt=0, description="multiply every wheel's spin inertia (Kraiem 2022: 2)")
     wheel_speed_scale: float = Field(1.0, gt=0, description="multiply every wheel's speed limit")
     joint_speed_scale: float = Field(1.0, gt=0, description="multiply every joint's speed limit")
     attach: list[str] = Field(default_factory=list, description="payloads attached in this variant")
@@ -96,7 +96,7 @@ class ModalSpec(StrictModel):
         default_factory=lambda: [{}],
         description="joint values by name; joints not named keep their initial value ({} = initial state)")
     joints: Literal["free", "locked"] = Field(
-        "free", description="free: arm joints and wheels torque-driven (open loop, as seed 004 Fig. 2.12); "
+        "free", description="free: arm joints and wheels torque-driven (open loop, as Kraiem 2022 Fig. 2.12); "
                             "locked: clamped by their servos")
     export: list[Literal["npz", "mat"]] = Field(default_factory=lambda: ["npz", "mat"])
 

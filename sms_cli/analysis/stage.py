@@ -184,7 +184,7 @@ def _plots(P, out: Path, variants, stats, mission: str) -> list[Path]:
             if all(c in cl[2] for cl in clouds.values()):
                 items = [(n, xyz, rows[:, cols.index(c)]) for n, (xyz, rows, cols) in clouds.items()]
                 files.append(P.compare_clouds(out / f"analysis_compare_{c}.png", items, c,
-                                              f"{mission}: {P.LABELS.get(c, c)} per variant (seed 004 Fig. 3.6-3.8 views)"))
+                                              f"{mission}: {P.LABELS.get(c, c)} per variant (Kraiem 2022 Fig. 3.6-3.8 views)"))
     return files
 
 

@@ -97,7 +97,7 @@ class WheelArray(WheelRotor):
 
     ``pyramid``: ``count`` wheels whose axes make the angle ``beta`` with the array axis (z
     of the array frame), at azimuths ``azimuth0 + k·360°/count``; wheel k spins about
-    ``[sinβ cos φk, sinβ sin φk, cosβ]`` (seed 000 eq. 3.5 for count=4, azimuth0=0).
+    ``[sinβ cos φk, sinβ sin φk, cosβ]`` (Caldera 2019 eq. 3.5 for count=4, azimuth0=0).
     ``orthogonal``: three wheels along x, y, z of the array frame (``beta`` unused).
     """
 
@@ -149,7 +149,7 @@ class AppendageSpec(StrictModel):
     link: str = Field(description="URDF link of the appendage (its rigid inertia)")
     frame: str | None = Field(None, description="junction frame in which L is expressed (default: 'link')")
     ordering: Literal["TR", "RT"] = Field(
-        "TR", description="order of L's entries: TR = [Tx Ty Tz Rx Ry Rz] (seed 004), RT = [Rx Ry Rz Tx Ty Tz]")
+        "TR", description="order of L's entries: TR = [Tx Ty Tz Rx Ry Rz] (Kraiem 2022), RT = [Rx Ry Rz Tx Ty Tz]")
     modes: list[Mode] = Field(min_length=1)
     initial_amplitudes: list[float] | None = Field(None, description="η(0), one per mode (default 0)")
 

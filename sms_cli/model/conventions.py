@@ -52,7 +52,7 @@ def twist_linear_first_to_angular_first(twist: np.ndarray) -> np.ndarray:
 
 
 def euler_zyx_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``R = Rz(yaw) Ry(pitch) Rx(roll)`` (seed 004 (2.7), URDF rpy)."""
+    """``R = Rz(yaw) Ry(pitch) Rx(roll)`` (Kraiem 2022 (2.7), URDF rpy)."""
     return pin.rpy.rpyToMatrix(roll, pitch, yaw)
 
 

@@ -417,7 +417,7 @@ class SystemModel:
         }
 
     def generalized_jacobians(self, q: np.ndarray) -> dict[str, np.ndarray]:
-        """Seed 004 (3.5)–(3.8) at zero momentum: J_m0, J_r0 (→ [ω0 body; ṙ0 inertial]),
+        """Kraiem 2022 (3.5)–(3.8) at zero momentum: J_m0, J_r0 (→ [ω0 body; ṙ0 inertial]),
         J_mEE, J_rEE (→ end-effector twist [ω; v] in the inertial frame, v of the EE frame origin)."""
         B = self.blocks(q)
         H0 = B["H0"]

@@ -5,7 +5,7 @@ or a mass event, and the orbit after it; orbital ΔV does not depend on mass. ``
 then applies the rocket equation burn by burn from a launch mass m0, adding captured targets,
 removing released ones and adding refuelled propellant. Masses in kg, ΔV in m/s, time in s.
 
-Closing rule (seed 001 eq. 3.1/3.2): between two refuels (a "leg"), the propellant left at the
+Closing rule (Chevallard 2019 eq. 3.1/3.2): between two refuels (a "leg"), the propellant left at the
 end of the leg must cover ``margin`` × the propellant consumed in it. The chain is affine in m0,
 so the closing value is a concave function of m0 and the smallest closing launch mass is its
 root (``size_wet_mass``, scipy brentq).

@@ -1,7 +1,7 @@
 """Physical constants of the central body (Earth by default), overridable per mission.
 
 SI units: μ in m^3/s^2, radius in m, g0 in m/s^2 (the standard gravity that defines Isp),
-J2 dimensionless. Seed 001 used two other sets; see ``CHEVALLARD_PRELIMINARY`` and
+J2 dimensionless. Chevallard 2019 used two other sets; see ``CHEVALLARD_PRELIMINARY`` and
 ``CHEVALLARD_IOS`` (found by reproducing its tables, notes/001_chevallard.md §2.4).
 """
 
@@ -29,7 +29,7 @@ class Constants:
 
 
 EARTH = Constants()
-#: Seed 001 preliminary trade-off (Tables 3.1-3.12): R_E 6378 km, μ 398600.44 km^3/s^2, g0 9.80665.
+#: Chevallard 2019 preliminary trade-off (Tables 3.1-3.12): R_E 6378 km, μ 398600.44 km^3/s^2, g0 9.80665.
 CHEVALLARD_PRELIMINARY = Constants(mu=3.9860044e14, radius=6378.0e3, g0=9.80665)
-#: Seed 001 IOS budgets (Tables 3.14-3.20): R_E 6371 km, μ 398600 km^3/s^2, g 9.81.
+#: Chevallard 2019 IOS budgets (Tables 3.14-3.20): R_E 6371 km, μ 398600 km^3/s^2, g 9.81.
 CHEVALLARD_IOS = Constants(mu=3.986e14, radius=6371.0e3, g0=9.81)

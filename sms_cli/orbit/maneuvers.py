@@ -1,7 +1,7 @@
 """Orbital manoeuvres: each takes an ``Orbit`` and returns the burns (ΔV, m/s) and the new orbit.
 
 Impulsive burns happen at an apsis; a plane change assumes the node lies on the apse line
-(seed 001, L305). Elliptic-to-elliptic transfers are coaxial. The electric low-thrust
+(Chevallard 2019, L305). Elliptic-to-elliptic transfers are coaxial. The electric low-thrust
 transfer uses Edelbaum's ΔV (circular to circular, constant thrust, plane change spread
 over the spiral). Radii and speeds are SI (m, m/s); angles in radians.
 """
@@ -61,7 +61,7 @@ def combined_dv(v1: float, v2: float, angle: float) -> float:
 
 
 def hohmann_dv(r1: float, r2: float, mu: float) -> tuple[float, float, float]:
-    """Hohmann transfer between circular radii: (ΔV1, ΔV2, time of flight) (seed 001 eq. 2.3)."""
+    """Hohmann transfer between circular radii: (ΔV1, ΔV2, time of flight) (Chevallard 2019 eq. 2.3)."""
     s = r1 + r2
     dv1 = math.sqrt(mu / r1) * (math.sqrt(2.0 * r2 / s) - 1.0)
     dv2 = math.sqrt(mu / r2) * (1.0 - math.sqrt(2.0 * r1 / s))
@@ -294,5 +294,5 @@ def aerobraking(orbit: Orbit, ra_new: float, duration: float | None, constants: 
     hp = (orbit.rp - constants.radius) / 1e3
     notes = []
     if not 80.0 <= hp <= 200.0:
-        notes.append(f"aerobraking with a perigee at {hp:.0f} km altitude: seed 001 assumes 100-150 km")
+        notes.append(f"aerobraking with a perigee at {hp:.0f} km altitude: Chevallard 2019 assumes 100-150 km")
     return ManeuverResult(replace(orbit, ra=ra_new), [], coast=duration, notes=notes)

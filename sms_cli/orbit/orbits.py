@@ -2,7 +2,7 @@
 
 An ``Orbit`` holds the perigee and apogee *radii* (m, from the centre of the body), the
 inclination (rad) and, when known, the RAAN and argument of perigee (rad). Burns are
-assumed at an apsis and, for plane changes, with the node on the apse line (seed 001 L305).
+assumed at an apsis and, for plane changes, with the node on the apse line (Chevallard 2019 L305).
 """
 
 from __future__ import annotations

@@ -3,13 +3,13 @@
 Models (masses in kg, ΔV in m/s, thrust in N, Isp in s, exhaust speed ve = g0·Isp):
 
 - propellant ``tsiolkovsky`` (default): m_p = m0 (1 − e^{−ΔV/ve}).
-- propellant ``linearized``: m_p = m0 ΔV / ve, the first-order expansion seed 001 used for its
+- propellant ``linearized``: m_p = m0 ΔV / ve, the first-order expansion Chevallard 2019 used for its
   electric burns (eq. 2.8 with t = m0 ΔV/F); it over-estimates the propellant.
 - duration ``constant_thrust`` (default): constant thrust F and mass flow F/ve, exact for the
   rocket equation: t = m_p ve / F = m0 (1 − e^{−ΔV/ve}) ve / F. The same law gives the thrusting
   time of an electric (low-thrust) transfer once its ΔV is known (impulsive ΔV × margin, or the
   Edelbaum ΔV of ``low_thrust`` steps).
-- duration ``linearized``: t = m0 ΔV / F (momentum with the initial mass; seed 001 IOS tables).
+- duration ``linearized``: t = m0 ΔV / F (momentum with the initial mass; Chevallard 2019 IOS tables).
 """
 
 from __future__ import annotations

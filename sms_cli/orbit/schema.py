@@ -30,7 +30,7 @@ Apsis = Literal["perigee", "apogee"]
 
 
 class ConstantsSpec(StrictModel):
-    """Central-body constants (defaults: Earth, WGS-84/EGM-96). Seed 001 used other values."""
+    """Central-body constants (defaults: Earth, WGS-84/EGM-96). Chevallard 2019 used other values."""
 
     mu: GravitationalParameter = Field(3.986004418e14, gt=0, description="gravitational parameter, e.g. \"398600.4418 km^3/s^2\"")
     earth_radius: Length = Field(6378137.0, gt=0, description="equatorial radius; altitudes are measured from it")
@@ -75,12 +75,12 @@ class PropulsionSpec(StrictModel):
     isp: Time = Field(gt=0, description="specific impulse, e.g. \"321 s\"")
     thrust: Force = Field(gt=0, description="total thrust of the firing thrusters, e.g. \"80 N\" or \"224 mN\"")
     propellant_model: Literal["tsiolkovsky", "linearized"] = Field(
-        "tsiolkovsky", description="tsiolkovsky: m0(1-exp(-dV/ve)); linearized: m0 dV/ve (seed 001 electric, conservative)")
+        "tsiolkovsky", description="tsiolkovsky: m0(1-exp(-dV/ve)); linearized: m0 dV/ve (Chevallard 2019 electric, conservative)")
     duration_model: Literal["constant_thrust", "linearized"] = Field(
-        "constant_thrust", description="constant_thrust: t = m_prop ve/F (exact); linearized: t = m0 dV/F (seed 001 IOS)")
+        "constant_thrust", description="constant_thrust: t = m_prop ve/F (exact); linearized: t = m0 dV/F (Chevallard 2019 IOS)")
     dv_margins: dict[str, Dimensionless] = Field(
         default_factory=dict,
-        description="ΔV factor per step type for this system, plus 'default' (seed 001 electric: plane_change 1.3, default 1.2)")
+        description="ΔV factor per step type for this system, plus 'default' (Chevallard 2019 electric: plane_change 1.3, default 1.2)")
     description: str = Field("", description="free text")
 
 
@@ -96,15 +96,15 @@ class MarginsSpec(StrictModel):
 
     propellant: Dimensionless = Field(
         0.0, ge=0, description="reserve as a fraction of the propellant consumed: closes when "
-                               "m_final >= m_dry + margin*m_prop (seed 001 eq. 3.2 uses 0.3)")
+                               "m_final >= m_dry + margin*m_prop (Chevallard 2019 eq. 3.2 uses 0.3)")
     dv: dict[str, Dimensionless] = Field(
         default_factory=dict, description="ΔV factor per step type for every propulsion system, plus 'default'")
 
 
 class SizingSpec(StrictModel):
-    """Wet-mass sizing: the smallest launch mass that closes the budget (seed 001 eq. 3.1)."""
+    """Wet-mass sizing: the smallest launch mass that closes the budget (Chevallard 2019 eq. 3.1)."""
 
-    grid: Mass = Field(0.0, ge=0, description="round the sized mass up to a multiple of this (seed 001: 100 kg); 0 = exact")
+    grid: Mass = Field(0.0, ge=0, description="round the sized mass up to a multiple of this (Chevallard 2019: 100 kg); 0 = exact")
     max_mass: Mass = Field(1.0e7, gt=0, description="give up above this launch mass (the budget diverges)")
 
 
@@ -206,7 +206,7 @@ class RaanDrift(_Step):
 
 
 class Allowance(_Burn):
-    """A fixed ΔV: rendezvous (seed 001: 50 m/s each), station keeping, contingency."""
+    """A fixed ΔV: rendezvous (Chevallard 2019: 50 m/s each), station keeping, contingency."""
 
     type: Literal["rendezvous", "allowance"]
     dv: Velocity = Field(ge=0, description="ΔV allowance, e.g. \"50 m/s\"")
@@ -216,7 +216,7 @@ class Deorbit(_Burn):
     """Lower the perigee to a re-entry altitude with one burn at apogee."""
 
     type: Literal["deorbit"]
-    perigee: Length = Field(description="target perigee altitude (seed 001: 50 km preliminary, 100 km IOS)")
+    perigee: Length = Field(description="target perigee altitude (Chevallard 2019: 50 km preliminary, 100 km IOS)")
 
 
 class Graveyard(_Burn):

@@ -14,7 +14,7 @@ from sms_cli.sim.laws.schema import ArmLawSpec, AttitudeLawSpec, ResolvedRateSpe
 BaseMode = Literal["free-floating", "rotation-free-floating", "free-flying", "fixed"]
 # free-floating: nothing controls the base; rotation-free-floating: attitude by the attitude law
 # (wheels or thrusters), translation free; free-flying: attitude law through thrusters;
-# fixed: the base is held perfectly (seed 001's "base perfectly controlled"): its acceleration is
+# fixed: the base is held perfectly (Chevallard 2019's "base perfectly controlled"): its acceleration is
 # zero and the wrench needed to hold it is reported as /base/reaction.
 
 
@@ -48,7 +48,7 @@ class PhaseSpec(StrictModel):
     waypoints: list[Waypoint] = Field(default_factory=list)
     joint_profile: Literal["quintic", "step"] = Field(
         "quintic", description="quintic: smooth rest-to-rest segments ending at each waypoint; "
-                               "step: the reference jumps to each waypoint at its time (seed 000 style)")
+                               "step: the reference jumps to each waypoint at its time (Caldera 2019 style)")
     end_effector: EndEffectorTarget | None = None
     attach: list[str] = Field(default_factory=list, description="payloads attached at the phase start")
     detach: list[str] = Field(default_factory=list, description="payloads released at the phase start")
@@ -120,7 +120,7 @@ class DivergenceSpec(StrictModel):
 
 
 class NdiSpec(StrictModel):
-    """Seed 004 NDI of the wheels + arm with the flexible/base-state observer (replaces the attitude and
+    """Kraiem 2022 NDI of the wheels + arm with the flexible/base-state observer (replaces the attitude and
     arm laws). Gains from ``gains.yaml`` (written by ``sms synthesize``, found in the results folder or
     at a path relative to the mission file) or given here."""
 
@@ -143,7 +143,7 @@ class SimulationSpec(StrictModel):
     attitude_actuator: Literal["wheels", "thrusters"] = "wheels"
     arm: ArmLawSpec | None = Field(None, description="manipulator joint law")
     resolved_rate: ResolvedRateSpec | None = Field(None, description="end-effector tracking (phases with end_effector)")
-    ndi: NdiSpec | None = Field(None, description="seed 004 NDI + observer on wheels and arm (instead of attitude/arm laws)")
+    ndi: NdiSpec | None = Field(None, description="Kraiem 2022 NDI + observer on wheels and arm (instead of attitude/arm laws)")
     allocation: AllocationSpec = Field(default_factory=AllocationSpec)
     wheel_friction: WheelFriction = Field(default_factory=WheelFriction)
     sensors: SensorsSpec = Field(default_factory=SensorsSpec)

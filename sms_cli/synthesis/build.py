@@ -1,5 +1,5 @@
 """From a compiled ``SystemModel`` and the mission's ``synthesis:`` section to the inputs of the
-solvers: LMI ``SynthesisRequest`` (seed 004), worst-case inertias and disturbance bounds (PD,
+solvers: LMI ``SynthesisRequest`` (Kraiem 2022), worst-case inertias and disturbance bounds (PD,
 LQR, SMC).
 
 Frames and units: actuator coordinates q = [wheel angles; arm joints] (rad or m, v-index order);
@@ -44,7 +44,7 @@ def torque_limits(sm, spec) -> np.ndarray:
 
 
 def lmi_setup(sm, spec) -> LmiSetup:
-    """The seed 004 request: nominal = the mission's initial configuration (+ the listed extra
+    """The Kraiem 2022 request: nominal = the mission's initial configuration (+ the listed extra
     configurations), samples = random arm configurations in a box of half-width ``spread``."""
     lspec = spec.lmi
     ix, names, fnames = model_index(sm)
@@ -53,7 +53,7 @@ def lmi_setup(sm, spec) -> LmiSetup:
                          [Problem("the robot has no wheel and no arm joint", field="synthesis.law",
                                   hint="use law: pd, lqr or smc for a base-only robot")])
     if len(fnames) == 0:
-        raise InputError("LMI synthesis (seed 004) estimates flexible states: the robot has none",
+        raise InputError("LMI synthesis (Kraiem 2022) estimates flexible states: the robot has none",
                          [Problem("no appendage modes and no spring joints", field="synthesis.law",
                                   hint="use law: pd or lqr, or add appendages")])
     qs = [np.asarray(sm.q0, dtype=float)]

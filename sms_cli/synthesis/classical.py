@@ -6,10 +6,10 @@ Every axis is a double integrator J ë = u (J in kg m² or kg, e in rad or m, u 
   inertia J_w over the workspace: for J ≤ J_w the same gains give ω_n(J) = √(K_p/J) ≥ ω_n and
   ζ(J) = K_d/(2√(K_p J)) ≥ ζ, so the requested bandwidth and damping are floors everywhere.
 * LQR: the continuous Riccati equation (scipy ``solve_continuous_are``), K = R⁻¹BᵀP.
-* Sliding mode, seed 000 (3.17) first-order law u = … − c J tanh(μσ), σ = ė + λe: the surface
+* Sliding mode, Caldera 2019 (3.17) first-order law u = … − c J tanh(μσ), σ = ė + λe: the surface
   is reached and kept when c J_min ≥ margin · τ_d,max (disturbance torque bound); μ is chosen so
   that the linearised surface dynamics σ̇ = −cμσ are 5× faster than the surface pole λ.
-* Twisting, seed 003 (3.14)/(4.6): with |σ̈_{u=0}| ≤ C and K_m ≤ ∂σ̈/∂u ≤ K_M, the gains
+* Twisting, Ruggiero 2020 (3.14)/(4.6): with |σ̈_{u=0}| ≤ C and K_m ≤ ∂σ̈/∂u ≤ K_M, the gains
   r1 > r2 > 0 converge when K_m(r1 + r2) − C > K_M(r1 − r2) + C and K_m(r1 − r2) > C.
 """
 
@@ -69,7 +69,7 @@ def axis_lqr(inertia: float, q_position: float, q_velocity: float, r_effort: flo
 
 @dataclass
 class SmcGains:
-    """First-order SMC (seed 000 (3.17) base / (4.15) arm): surface slope λ (1/s), switching
+    """First-order SMC (Caldera 2019 (3.17) base / (4.15) arm): surface slope λ (1/s), switching
     gain c (rad/s², multiplies J), smoothing μ (s/rad)."""
 
     slope: np.ndarray
@@ -88,7 +88,7 @@ def smc_gains(inertia_min, disturbance_bound, surface_slope: float, margin: floa
 
 
 def twisting_ok(C: float, Km: float, KM: float, r1: float, r2: float) -> bool:
-    """Seed 003 (3.14)/(4.6) convergence conditions of the twisting algorithm."""
+    """Ruggiero 2020 (3.14)/(4.6) convergence conditions of the twisting algorithm."""
     return bool(Km * (r1 + r2) - C > KM * (r1 - r2) + C and Km * (r1 - r2) > C and r1 > r2 > 0)
 
 

@@ -9,7 +9,7 @@ Format (``format: sms-gains/1``; every list per actuator follows ``actuators``; 
     actuators: [rw1, ..., arm_joint_4]  # wheels first, then arm joints (v-index order)
     controller:
       units: acceleration             # 'acceleration': v = q̈_d + kp ε + kv ε̇ (1/s², 1/s), torque
-                                      #   τ = M◇ v + D◇ q̇ + D◇_x x̂ (seed 004 (3.38)); 'torque':
+                                      #   τ = M◇ v + D◇ q̇ + D◇_x x̂ (Kraiem 2022 (3.38)); 'torque':
                                       #   τ = kp ε + kv ε̇ (N m/rad, N m s/rad), ε = q_d − q
       kp: [...]
       kv: [...]

@@ -1,7 +1,7 @@
-"""Simultaneous controller + observer gain synthesis by LMIs (seed 004 §3.3.3 and §4.2.5).
+"""Simultaneous controller + observer gain synthesis by LMIs (Kraiem 2022 §3.3.3 and §4.2.5).
 
 Plant of the synthesis (one *linearisation* = one ``ErrorModel``): the NDI error dynamics
-(seed 004 (3.41))::
+(Kraiem 2022 (3.41))::
 
     ż   = (A_z + B_z K) z + [0; B_ε] ε_e        z = [ε_c; ε̇_c] (actuator units: rad, m)
     ε̇_e = (A_e − L C_e) ε_e                     ε_e: observer error (units of the model)
@@ -11,12 +11,12 @@ and, for the chapter 4 variant, the disturbance-observer error ε_d (N m, per ac
 
     ε̇_d = −L_d ε_d + L_d D◇_x ε_e,   L_d = Q_d M◇⁻¹,   ż gets + [0; −M◇⁻¹] ε_d
 
-Both propositions are plain SDPs (notes 004 §5.3). What is added to the thesis, and why:
+Both propositions are plain SDPs (Kraiem 2022 reading notes §5.3). What is added to the thesis, and why:
 
 * **Structure.** Q_z = [[Q11, Q12], [Q12, Q22]] with Q11, Q12, Q22 diagonal (per-actuator 2×2
   blocks) and W_z = [W_p, W_v] diagonal. K = W_z Q_z⁻¹ is then [K_p, K_v] with K_p, K_v
   diagonal. A literally diagonal Q_z is infeasible (its (1,1) block of (A_zQ_z + B_zW_z)^s is
-  Q12 + Q12ᵀ = 0), which is why seed 004's "Q_z diagonal" cannot be meant literally.
+  Q12 + Q12ᵀ = 0), which is why Kraiem 2022's "Q_z diagonal" cannot be meant literally.
 * **Pole regions** (Chilali–Gahinet, on the same Q_z and P_ε as the γ-LMI) replace the
   trial-and-error bounds of the thesis; minimising γ without them drives K to ~1e7.
 * **Actuator authority.** With V(0) ≤ 1 the state stays in zᵀQ_z⁻¹z ≤ 1, so the feedback
@@ -28,7 +28,7 @@ Both propositions are plain SDPs (notes 004 §5.3). What is added to the thesis,
   every initial error in S = (box of tracking errors) × {ε_eᵀE_eε_e ≤ 1} (× {ε_dᵀE_dε_d ≤ 1}):
   V(0) ≤ 1 on S through a budget c_e + Σc_i (+ c_d) ≤ 1 with P_ε ⪯ c_e E_e (the thesis's
   P_ε < E when there is no tracking error) and each box corner v inside vᵀQ_i⁻¹v ≤ c_i.
-  E_e is built from per-state bounds (``ellipsoid_from_box``); seed 004 never gives E.
+  E_e is built from per-state bounds (``ellipsoid_from_box``); Kraiem 2022 never gives E.
   Chapter 4's condition P_dᵀM◇P_d ⪯ E_d is non-convex in Q_d = P_d⁻¹; it is replaced by the
   convex sufficient condition 2Q_d − E_d⁻¹ ⪰ M◇(q_j) at every linearisation j, from
   (Q_d − E_d⁻¹)E_d(Q_d − E_d⁻¹) ⪰ 0 ⇒ Q_d E_d Q_d ⪰ 2Q_d − E_d⁻¹ (with c_d = 1/2 fixed).
@@ -130,7 +130,7 @@ class SynthesisRequest:
       None = no authority constraint; inf entries = no constraint on that actuator.
     The γ guarantee covers every initial error in S = B_z × {ε_eᵀE_eε_e ≤ 1} × {ε_dᵀE_dε_d ≤ 1}:
     tracking: (n_q, 2) bounds (|ε_c,i(0)|, |ε̇_c,i(0)|) of the box B_z (None: z(0) = 0, as
-      in seed 004); E_e: observer initial-error ellipsoid (n_e×n_e); E_d: NDO initial-error
+      in Kraiem 2022); E_e: observer initial-error ellipsoid (n_e×n_e); E_d: NDO initial-error
       ellipsoid (n_q×n_q, chapter 4 only).
     """
 

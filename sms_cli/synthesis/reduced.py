@@ -1,4 +1,4 @@
-"""Reduced actuator dynamics of seed 004 §3.3, linearised at rest, as LMI ``ErrorModel``s.
+"""Reduced actuator dynamics of Kraiem 2022 §3.3, linearised at rest, as LMI ``ErrorModel``s.
 
 Coordinates (SystemModel, Pinocchio velocities): base linear (3), base angular ω0 (3, base
 frame), actuators q (wheels then arm joints, v-index order), flexible coordinates f (passive
@@ -10,7 +10,7 @@ equilibrium points) the convective terms vanish and the equations are
 1. The base translation is cyclic (free floating, zero gravity): eliminating it at constant
    linear momentum replaces M by its Schur complement on the remaining coordinates (Routh
    reduction; exact for the kinetic energy whatever the base-velocity convention). This also
-   removes ṙ_S0 from the observer state: in seed 004 (3.30) it is an unobservable integrator of
+   removes ṙ_S0 from the observer state: in Kraiem 2022 (3.30) it is an unobservable integrator of
    A_e at rest, which no observer gain can move (the LMI would be infeasible).
 2. With b = [ω0; f]: observer model (3.28)–(3.30), x = [f; ω0; ḟ], y = ω0 (C_e = [0 I 0]):
    M* = M_bb − M_bq M_qq⁻¹ M_qb,  [ω̇0; f̈] = −M*⁻¹ [0; K_f f + C_f ḟ] (+ input terms).
@@ -41,7 +41,7 @@ class ReducedIndex:
 
 def error_model_at_rest(M: np.ndarray, K_f: np.ndarray, C_f: np.ndarray, ix: ReducedIndex,
                         label: str = "") -> ErrorModel:
-    """The seed 004 reduced matrices at rest from the full mass matrix M (n_x×n_x) and the
+    """The Kraiem 2022 reduced matrices at rest from the full mass matrix M (n_x×n_x) and the
     flexible stiffness K_f and damping C_f (n_f×n_f). Returns A_e, C_e, B_ε, M◇, D◇_x."""
     keep = np.concatenate([ix.base_angular, ix.actuators, ix.flexible])
     lin = ix.base_linear

@@ -39,7 +39,7 @@ class InitialErrors(StrictModel):
 
     Observer errors: the box |η_k| ≤ modal_displacement, |η̇_k| ≤ modal_rate,
     |ω0_i| ≤ base_rate is inscribed in the ellipsoid εᵀEε ≤ 1 (E = diag(1/(n·b_i²))).
-    Tracking errors (optional, absent = z(0) = 0 as in seed 004): |ε_c,i| ≤ tracking,
+    Tracking errors (optional, absent = z(0) = 0 as in Kraiem 2022): |ε_c,i| ≤ tracking,
     |ε̇_c,i| ≤ tracking_rate, same construction.
     """
 
@@ -54,7 +54,7 @@ class InitialErrors(StrictModel):
 
 class WorkspaceSampling(StrictModel):
     """Where the ρ relaxations are sampled: joint configurations drawn in a box around the
-    nominal configuration (seed 004 Algorithm 2 samples the task's workspace)."""
+    nominal configuration (Kraiem 2022 Algorithm 2 samples the task's workspace)."""
 
     samples: int = Field(4, ge=0, le=5000, description="number of sampled configurations (0: nominal only)")
     spread: Angle = Field(0.5, ge=0, description="half-width of the box around each configuration (rad or m)")
@@ -65,7 +65,7 @@ class WorkspaceSampling(StrictModel):
 
 
 class LmiSpec(StrictModel):
-    """Seed 004 simultaneous controller + observer synthesis (Prop. 3.3.3.1 / 4.2.5)."""
+    """Kraiem 2022 simultaneous controller + observer synthesis (Prop. 3.3.3.1 / 4.2.5)."""
 
     variant: Literal["ndi_observer", "ndi_observer_ndo"] = Field(
         "ndi_observer", description="chapter 3 (NDI + state observer) or chapter 4 (+ disturbance observer)")
@@ -97,12 +97,12 @@ class LqrSpec(StrictModel):
 
 
 class SmcSpec(StrictModel):
-    """Sliding-mode attitude gains (seed 000 first-order tanh SMC; seed 003 twisting conditions (4.6)),
+    """Sliding-mode attitude gains (Caldera 2019 first-order tanh SMC; Ruggiero 2020 twisting conditions (4.6)),
     from a disturbance bound estimated from the arm motion over the sampled workspace."""
 
     surface_slope: AngularRate = Field(gt=0, description="λ of σ = λ e + ė (1/s)")
     kind: Literal["first_order", "twisting"] = Field(
-        "first_order", description="first_order: seed 000 tanh SMC (k, c, mu); twisting: seed 003 (k1, k2, lambda)")
+        "first_order", description="first_order: Caldera 2019 tanh SMC (k, c, mu); twisting: Ruggiero 2020 (k1, k2, lambda)")
     margin: Dimensionless = Field(1.5, gt=1, description="safety factor over the disturbance bound")
     max_joint_acceleration: AngularRate = Field(
         0.01, gt=0, description="joint acceleration of the arm motion used to bound the disturbance (rad/s²)")

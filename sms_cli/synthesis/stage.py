@@ -6,7 +6,7 @@ per linearisation, every verification check with pass/fail, solve time, LMI size
 requested region). A failed verification is written as such, then raised as NumericalError
 (exit 3) naming the failed checks and what to relax; so is an infeasible LMI.
 
-Laws: ``lmi`` (seed 004 NDI + observer, acceleration gains per actuator), ``pd``/``lqr``/``smc``
+Laws: ``lmi`` (Kraiem 2022 NDI + observer, acceleration gains per actuator), ``pd``/``lqr``/``smc``
 (base attitude axes x, y, z of the base frame, torque gains on the worst-case locked inertia).
 """
 
@@ -122,7 +122,7 @@ def check_verified(section: dict[str, Any], written: bool = True) -> None:
 
 
 # ---------------------------------------------------------------------------------------
-# LMI (seed 004)
+# LMI (Kraiem 2022)
 
 
 def _run_lmi(sm, spec, on_infeasible: Callable[[dict], None] | None):
@@ -285,7 +285,7 @@ def _run_classical(sm, spec):
             peak = np.full(3, r1 + r2)
             ok = classical.twisting_ok(C, Km, KM, r1, r2)
             checks.append(_check("twisting_conditions", ok,
-                                 f"seed 003 (4.6) with C = {C:.3g} rad/s², K_m = {Km:.3g}, K_M = {KM:.3g} 1/(kg m²): "
+                                 f"Ruggiero 2020 (4.6) with C = {C:.3g} rad/s², K_m = {Km:.3g}, K_M = {KM:.3g} 1/(kg m²): "
                                  f"r1 = {r1:.4g}, r2 = {r2:.4g} N m", None, None))
             gains.smc = SmcGainsFile(axes=AXES, slope=[lam] * 3, c=[0.0] * 3, mu=[1.0] * 3, disturbance_bound=td.tolist(),
                                      twisting=TwistingGains(r1=r1, r2=r2, C=C, K_m=Km, K_M=KM))

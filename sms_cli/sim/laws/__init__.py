@@ -1,9 +1,9 @@
 """Control laws of the simulator (issue 7 item 3): base attitude, arm joints, end-effector tracking.
 
-- ``attitude``: QuaternionPD, MrpFeedback (Basilisk mrpFeedback), SlidingModeAttitude (seed 000),
-  TwistingAttitude and BacksteppingAttitude (seed 003);
-- ``arm``: JointPD (seed 001), JointSMC (seed 003), ComputedTorque, ComputedTorqueSMC (seed 000);
-- ``resolved_rate``: ResolvedRate, generalized-Jacobian end-effector tracking (seed 001);
+- ``attitude``: QuaternionPD, MrpFeedback (Basilisk mrpFeedback), SlidingModeAttitude (Caldera 2019),
+  TwistingAttitude and BacksteppingAttitude (Ruggiero 2020);
+- ``arm``: JointPD (Chevallard 2019), JointSMC (Ruggiero 2020), ComputedTorque, ComputedTorqueSMC (Caldera 2019);
+- ``resolved_rate``: ResolvedRate, generalized-Jacobian end-effector tracking (Chevallard 2019);
 - ``plant_models``: inertia, internal momentum and joint-space dynamics from the SystemModel;
 - ``schema``: mission-file specs (``law:`` discriminator) and the ``build_*`` factories.
 Frames and units: ``sms_cli.sim.interfaces``. Importing this package does not import numpy.

@@ -26,7 +26,7 @@ def _mask(wrap) -> np.ndarray | None:
 
 
 class JointPD:
-    """Cascaded joint PD of seed 001 (Chevallard 2019, §5.4, Fig. 5.4): a P position loop feeding a
+    """Cascaded joint PD of Chevallard 2019 (§5.4, Fig. 5.4): a P position loop feeding a
     D rate loop, τ = K_D (K_P (q_d − q) + q̇_d − q̇) (the seed has q̇_d = 0; ``rate_feedforward``
     adds it). K_P (1/s), K_D (N m s/rad). On a joint of inertia I: I ë + K_D ė + K_D K_P e = 0,
     ω_n = √(K_D K_P / I), ζ = K_D / (2 √(K_D K_P I)).
@@ -47,7 +47,7 @@ class JointPD:
 
 
 class JointSMC:
-    """First-order joint SMC of seed 003 (Ruggiero 2020, (4.1)–(4.4), (5.1)):
+    """First-order joint SMC of Ruggiero 2020 ((4.1)–(4.4), (5.1)):
 
         σ = λ (q − q_d) + (q̇ − q̇_d),   τ = −k tanh(η σ)   (or −k sign(σ))
 
@@ -95,7 +95,7 @@ class ComputedTorque:
 
 
 class ComputedTorqueSMC:
-    """Joint SMC of seed 000 (Caldera 2019, (4.13)–(4.15)) made self-consistent.
+    """Joint SMC of Caldera 2019 ((4.13)–(4.15)) made self-consistent.
 
     The seed's law is computed torque with PD gains (k₁, k₂), designed critically damped
     (k₁² = 4 k₂, L578), plus a tanh robust term. Here the surface is s = ė + λ e with λ the slow

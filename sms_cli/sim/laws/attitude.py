@@ -183,7 +183,7 @@ class MrpFeedback:
 
 
 class SlidingModeAttitude:
-    """First-order SMC of seed 000 (Caldera 2019, (3.9)–(3.17)) with self-consistent signs.
+    """First-order SMC of Caldera 2019 ((3.9)–(3.17)) with self-consistent signs.
 
     Surface s = δω + k q_v (the seed's s_s = ω_e + k q_e with q_e = q⁻¹ ∘ q_r, ω_e = ω_r − ω is
     exactly −s). Law, from ṡ = −c tanh(μ s) on J ω̇ = τ − ω×(Jω + h):
@@ -222,7 +222,7 @@ class SlidingModeAttitude:
 
 
 class TwistingAttitude:
-    """Twisting SMC of seed 003 (Ruggiero 2020, (4.5)–(4.8), L538, (5.2)):
+    """Twisting SMC of Ruggiero 2020 ((4.5)–(4.8), L538, (5.2)):
 
         σ = λ q_v + δω,   u = −k₁ tanh(η σ) − k₂ tanh(η σ̇)   (or sign)
 
@@ -263,7 +263,7 @@ class TwistingAttitude:
 
 
 class BacksteppingAttitude:
-    """Backstepping of seed 003 (Ruggiero 2020, (4.15)–(4.28)), with ω̃ = ω − ω_c:
+    """Backstepping of Ruggiero 2020 ((4.15)–(4.28)), with ω̃ = ω − ω_c:
 
         ω_c = −K₁ q_v + ω_r,   γ = (J ω_c) × ω_c − J ω̇_c − J̇ ω_c,
         u = −K₂ ω̃ − q_v − T̂_dis − γ + ω_c × (J ω̃) + ½ J̇ ω̃,

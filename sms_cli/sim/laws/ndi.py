@@ -1,4 +1,4 @@
-"""Seed 004 §3.3–3.4: nonlinear dynamic inversion (NDI) of the actuators' reduced dynamics with a
+"""Kraiem 2022 §3.3–3.4: nonlinear dynamic inversion (NDI) of the actuators' reduced dynamics with a
 Luenberger observer of the unmeasured flexible and base states.
 
 Coordinates (SystemModel, augmented velocity x = [v; η̇]): base linear (3), base angular ω0

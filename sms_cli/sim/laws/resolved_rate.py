@@ -1,4 +1,4 @@
-"""End-effector tracking by generalized-Jacobian resolved rate (seed 001, Chevallard 2019, §5.4,
+"""End-effector tracking by generalized-Jacobian resolved rate (Chevallard 2019, §5.4,
 (5.53)–(5.57), Fig. 5.5): an outer P loop on the end-effector error gives a twist, the
 generalized Jacobian maps it to joint rates, an inner D loop gives the torques:
 

@@ -83,7 +83,7 @@ class MrpFeedbackSpec(StrictModel):
 
 
 class SmcAttitudeSpec(StrictModel):
-    """Seed 000 first-order SMC, s = δω + k q_v, ṡ = −c tanh(μ s) (self-consistent signs)."""
+    """Caldera 2019 first-order SMC, s = δω + k q_v, ṡ = −c tanh(μ s) (self-consistent signs)."""
 
     law: Literal["smc"]
     k: Rate
@@ -102,7 +102,7 @@ class SmcAttitudeSpec(StrictModel):
 
 
 class TwistingSpec(StrictModel):
-    """Seed 003 twisting SMC, σ = λ q_v + δω, u = −k1 tanh(η σ) − k2 tanh(η σ̇)."""
+    """Ruggiero 2020 twisting SMC, σ = λ q_v + δω, u = −k1 tanh(η σ) − k2 tanh(η σ̇)."""
 
     law: Literal["twisting_smc"]
     k1: TorqueGain
@@ -114,7 +114,7 @@ class TwistingSpec(StrictModel):
 
 
 class BacksteppingSpec(StrictModel):
-    """Seed 003 backstepping, ω_c = −K1 q_v + ω_r, V̇2 = −q_vᵀK1q_v − ω̃ᵀK2ω̃."""
+    """Ruggiero 2020 backstepping, ω_c = −K1 q_v + ω_r, V̇2 = −q_vᵀK1q_v − ω̃ᵀK2ω̃."""
 
     law: Literal["backstepping"]
     K1: Rate
@@ -134,7 +134,7 @@ ArmModel = Literal["free_floating", "attitude_held", "fixed_base"]
 
 
 class JointPdSpec(StrictModel):
-    """Seed 001 cascaded PD, τ = kd (kp (q_d − q) + q̇_d − q̇); kp (1/s), kd (N m s/rad)."""
+    """Chevallard 2019 cascaded PD, τ = kd (kp (q_d − q) + q̇_d − q̇); kp (1/s), kd (N m s/rad)."""
 
     law: Literal["joint_pd"]
     kp: Plain
@@ -143,7 +143,7 @@ class JointPdSpec(StrictModel):
 
 
 class ArmSmcSpec(StrictModel):
-    """Seed 003 joint SMC, σ = λ(q − q_d) + (q̇ − q̇_d), τ = −k tanh(η σ); k (N m), λ (1/s)."""
+    """Ruggiero 2020 joint SMC, σ = λ(q − q_d) + (q̇ − q̇_d), τ = −k tanh(η σ); k (N m), λ (1/s)."""
 
     law: Literal["smc"]
     k: Plain
@@ -162,7 +162,7 @@ class ComputedTorqueSpec(StrictModel):
 
 
 class SmcComputedTorqueSpec(StrictModel):
-    """Seed 000 joint SMC, τ = M*(q̈_d + k1 ė + k2 e + c tanh(μ s)) + h*, s = ė + λ e, k1² ≥ 4 k2."""
+    """Caldera 2019 joint SMC, τ = M*(q̈_d + k1 ė + k2 e + c tanh(μ s)) + h*, s = ė + λ e, k1² ≥ 4 k2."""
 
     law: Literal["smc_computed_torque"]
     k1: Plain
@@ -180,7 +180,7 @@ ArmLawSpec = Annotated[
 
 
 class ResolvedRateSpec(StrictModel):
-    """Seed 001 GJM resolved rate, q̇_d = J*⁺(ẋ_d + K e), τ = kd (q̇_d − q̇)."""
+    """Chevallard 2019 GJM resolved rate, q̇_d = J*⁺(ẋ_d + K e), τ = kd (q̇_d − q̇)."""
 
     gain: Rate = Field(description="K of the outer position loop (1/s)")
     orientation_gain: Rate | None = Field(None, description="K of the orientation loop (1/s); default: gain")
@@ -256,7 +256,7 @@ def build_attitude_law(spec, sm):
         k1, k2 = v3(spec.k1, "k1", "axes"), v3(spec.k2, "k2", "axes")
         if not (k1 > k2).all() or not (k2 > 0).all():
             raise InputError(problems=[Problem("the twisting law needs k1 > k2 > 0 on every axis", field=f"{f}.k1",
-                                               hint="raise k1 or lower k2 (seed 003 condition (4.6))")])
+                                               hint="raise k1 or lower k2 (Ruggiero 2020 condition (4.6))")])
         return A.TwistingAttitude(k1, k2, v3(spec.lam, "lambda", "axes"), v3(spec.eta, "eta", "axes"),
                                   spec.smoothing, spec.filter_time)
     if isinstance(spec, BacksteppingSpec):
@@ -284,7 +284,7 @@ def build_arm_law(spec, sm):
             return M.ComputedTorqueSMC(sm, vn(spec.k1, "k1"), vn(spec.k2, "k2"), vn(spec.c, "c"), vn(spec.mu, "mu"),
                                        spec.model, spec.smoothing, wrap)
         except ValueError as exc:
-            hint = "seed 000 designs the arm critically damped: k2 = k1²/4"
+            hint = "Caldera 2019 designs the arm critically damped: k2 = k1²/4"
             raise InputError(problems=[Problem(str(exc), field=f"{f}.k2", hint=hint)]) from None
     raise InputError(f"unknown arm law {getattr(spec, 'law', spec)!r}")
 
