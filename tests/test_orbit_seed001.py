@@ -1,6 +1,6 @@
 """Chevallard 2019 ΔV / propellant / duration tables, with the constants it really used.
 
-Every entry that reference/notes/001_chevallard.md marks reproducible is recomputed with the
+Every entry that the Chevallard 2019 reading notes marks reproducible is recomputed with the
 sms orbit code and compared at half a unit of its last printed digit. The entries the thesis
 got wrong are computed correctly; their tests assert our value against an independent formula
 and record the thesis value next to it (and how the thesis obtained it).

@@ -2,7 +2,7 @@
 
 SI units: μ in m^3/s^2, radius in m, g0 in m/s^2 (the standard gravity that defines Isp),
 J2 dimensionless. Chevallard 2019 used two other sets; see ``CHEVALLARD_PRELIMINARY`` and
-``CHEVALLARD_IOS`` (found by reproducing its tables, notes/001_chevallard.md §2.4).
+``CHEVALLARD_IOS`` (found by reproducing its tables, Chevallard 2019 reading notes §2.4).
 """
 
 from __future__ import annotations
