@@ -9,12 +9,13 @@ external resources, no scripts.
 from __future__ import annotations
 
 import hashlib
+import re
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 from sms_cli.check.metrics import damaged_sections, section
 from sms_cli.errors import InputError, Location, Problem, SmsError
-from sms_cli.report.model import Figure, Section, png_uri
+from sms_cli.report.model import Figure, Section
 from sms_cli.results import write_text_atomic
 
 T = TypeVar("T")
@@ -67,19 +68,21 @@ def _simulation_figures(folder: Path, sim: dict[str, Any], wheels: list[dict]) -
         notes.append(f"the wheel-momentum plot is left out: {csv_path} (or the wheels of the compile section) "
                      "could not be read")
     if png:
-        out.append(Figure("Reaction-wheel momentum per wheel and of the array (N m s); capacities in the legend.",
-                          png_uri(png), "wheel momentum"))
+        out.append(Figure.of_png("Reaction-wheel momentum per wheel and of the array (N m s) against the time: how much of "
+                                 "each wheel's capacity (in the legend) the manoeuvre uses.", png, "wheel momentum"))
     mcap = Path(str(files.get("mcap") or "simulation.mcap"))
     if not mcap.is_file():
         mcap = folder / mcap.name
     if mcap.is_file():
         try:
             topics = F.read_topics(mcap, ["/joints/position", "/joints/reference", "/ee/position", "/base/position"])
-            for fn, cap in ((F.joint_tracking_png, "Joint positions against their references (rad for revolute, m for prismatic)."),
-                            (F.ee_path_png, "End-effector and base-origin paths in the world frame (equal axes, m).")):
+            for fn, cap in ((F.joint_tracking_png, "Joint positions (solid) against their references (dashed): whether "
+                                                   "each joint follows its trajectory (rad for revolute, m for prismatic)."),
+                            (F.ee_path_png, "End-effector and base-origin paths in the world frame (equal axes, m): where "
+                                            "the end effector goes and how far the base drifts meanwhile.")):
                 png = fn(topics)
                 if png:
-                    out.append(Figure(cap, png_uri(png), cap))
+                    out.append(Figure.of_png(cap, png))
         except Exception:  # noqa: BLE001 - a damaged recording must not stop the report
             notes.append(f"the recording {mcap} could not be read (damaged or truncated), so its plots are left out; "
                          f"sms inspect {mcap} shows what it holds")
@@ -164,23 +167,80 @@ def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | N
         if sec is not None:
             sec.notes.extend(notes)
         sections.append(sec)
+    front: list[Section | None] = []
     if verdicts:
-        sections.append(attempt("requirements", lambda: S.requirements_section(verdicts)))
+        front.append(attempt("requirements", lambda: S.requirements_section(verdicts)))
     if run:
         sections.append(attempt("run", lambda: S.provenance_section(run, hashlib.sha256(raw).hexdigest())))
     text, cls = attempt("run", lambda: _verdict(run, verdicts)) or ("", "neutral")
     shown = [s for s in sections if s is not None]
+    first = [s for s in front if s is not None]
     if problems:
-        shown.insert(0, Section("unreadable", "Results that could not be read",
+        first.insert(0, Section("unreadable", "Results that could not be read",
                                 intro="results.json is damaged: these parts of it are left out of this report.",
                                 notes=problems))
         text = "; ".join(t for t in (text, f"{len(problems)} part(s) of results.json unreadable") if t)
         cls = "fail"
     if unreadable is not None:
         unreadable.extend(problems)
+    for k, f in enumerate(f for s in shown for f in s.figures):
+        f.id = f"fig-{k + 1}"
     return {"mission": name, "description": str(run.get("description", "")), "date": str(run.get("date", "")),
-            "verdict": text, "verdict_class": cls, "stage_rows": stage_rows, "sections": shown,
-            "n_figures": sum(len(s.figures) for s in shown)}
+            "verdict": text, "verdict_class": cls, "stage_rows": stage_rows, "front": first, "sections": shown,
+            "n_figures": sum(len(s.figures) for s in shown), "layout": _layout()}
+
+
+def _layout() -> dict[str, int]:
+    """The widths the figures are drawn at, for the template's CSS (one source: figstyle)."""
+    from sms_cli.report import figstyle
+
+    return {"content_px": figstyle.CONTENT_PX, "gap_px": figstyle.GAP_PX, "half_px": figstyle.HALF_PX}
+
+
+# A number as it appears in a table or a caption: sign, digits grouped by narrow no-break spaces,
+# decimals, exponent; not part of a word (RW1, sha256 hex).
+NUMBER = re.compile(r"(?<![\w.])[-+−]?(?:\d[\d\u202f]*(?:\.\d+)?|\.\d+)(?:[eE][-+]?\d+)?(?![\w])")
+UNIT_SPACE = re.compile(r"\b(N|kg) m(?![a-z])( s\b)?")  # N m, N m s, kg m², √kg m: one unit, one line
+LONG_NAME = re.compile(r"[\w./-]{25,}")  # metric paths, file paths: may break after . _ /; hashes anywhere
+HEX = re.compile(r"[0-9a-f]{25,}")
+
+
+def numwrap(text: Any):
+    """Escaped text with every number in a ``<span class="n">`` the template keeps on one line, and
+    long dotted names breakable after their dots and underscores only."""
+    from markupsafe import Markup, escape
+
+    def words(part: str) -> str:
+        out, last = [], 0
+        for m in LONG_NAME.finditer(part):
+            name = str(escape(m.group(0)))
+            out += [str(escape(part[last:m.start()])), f'<span class="hash">{name}</span>' if HEX.fullmatch(name)
+                    else re.sub(r"([._/])", r"\1<wbr>", name)]
+            last = m.end()
+        return UNIT_SPACE.sub(lambda m: m.group(1) + "\u00a0m" + ("\u00a0s" if m.group(2) else ""),
+                              "".join(out) + str(escape(part[last:])))
+
+    raw = str(text)
+    out, last = [], 0
+    for m in NUMBER.finditer(raw):
+        out += [words(raw[last:m.start()]), f'<span class="n">{escape(m.group(0))}</span>']
+        last = m.end()
+    return Markup("".join(out) + words(raw[last:]))
+
+
+def header(text: Any):
+    """A column header whose unit (``[kg m²]``) stays on one line."""
+    from markupsafe import Markup, escape
+
+    return Markup(re.sub(r"(\[[^\]]*\])", r'<span class="n">\1</span>', str(escape(text))))
+
+
+def css_string(text: Any):
+    """Text for a CSS string literal inside <style> (no HTML escaping there)."""
+    from markupsafe import Markup
+
+    out = "".join(c if c.isalnum() or c in " .,:;_-()[]+/" else f"\\{ord(c):x} " for c in str(text))
+    return Markup(out)
 
 
 def render(context: dict[str, Any]) -> str:
@@ -188,6 +248,7 @@ def render(context: dict[str, Any]) -> str:
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                              autoescape=True, trim_blocks=True, lstrip_blocks=True, undefined=jinja2.StrictUndefined)
+    env.filters.update(numwrap=numwrap, header=header, css_string=css_string)
     return env.get_template(TEMPLATE).render(**context)
 
 

@@ -1,4 +1,8 @@
-"""Optional PDF of a report through headless Chromium (``--print-to-pdf``), written atomically."""
+"""Optional PDF of a report through headless Chromium (``--print-to-pdf``), written atomically.
+
+The page set-up is the report's print stylesheet: A4 (``@page``), a title page with the verdict, page
+numbers in the footer, tables that wrap to the page width. ``paper`` prints on another CSS page size.
+"""
 
 from __future__ import annotations
 
@@ -23,16 +27,26 @@ def find_browser() -> str | None:
     return None
 
 
-def print_pdf(html: Path, target: Path | None = None, timeout: float = 120.0) -> Path:
-    """Print ``html`` to ``target`` (default: same name, ``.pdf``)."""
+PAPERS = ("A4", "A3", "A5", "letter", "legal")
+
+
+def print_pdf(html: Path, target: Path | None = None, timeout: float = 120.0, paper: str = "A4") -> Path:
+    """Print ``html`` to ``target`` (default: same name, ``.pdf``) on ``paper`` (one of :data:`PAPERS`)."""
+    if paper not in PAPERS:
+        raise InputError(problems=[Problem(f"unknown paper size '{paper}'", hint="one of " + ", ".join(PAPERS))])
     browser = find_browser()
     if browser is None:
         raise InputError(problems=[Problem("no PDF engine: chromium is not installed",
                                            hint="install it (Debian: apt-get install chromium) or open the HTML and print it")])
     target = Path(target) if target is not None else Path(html).with_suffix(".pdf")
     with tempfile.TemporaryDirectory(prefix="sms-chromium-") as profile, atomic_path(target) as tmp:
+        source = Path(html).resolve()
+        if paper != "A4":  # the report's stylesheet says A4: a copy that says otherwise
+            text = source.read_text(encoding="utf-8")
+            source = Path(profile) / "report.html"
+            source.write_text(text.replace("</head>", f"<style>@page {{ size: {paper}; }}</style></head>", 1), encoding="utf-8")
         cmd = [browser, *FLAGS, f"--user-data-dir={profile}", "--no-pdf-header-footer",
-               f"--print-to-pdf={tmp}", Path(html).resolve().as_uri()]
+               f"--print-to-pdf={tmp}", source.as_uri()]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
