@@ -164,7 +164,7 @@ def cloud(path: Path, xyz: np.ndarray, values: np.ndarray, column: str, title: s
     norm = _norm(values, vlim)
     im = _maps_row(fig, axes[0], xyz, values, column, norm, centre, span, _cell(span, len(values)))
     _colorbar(fig, im, column, bool((~np.isfinite(values)).any()))
-    fig.suptitle(S.cite(title), x=0.01, y=0.99, ha="left", va="top")
+    fig.suptitle(title, x=0.01, y=0.99, ha="left", va="top")
     return S.save(fig, path)
 
 
@@ -181,7 +181,7 @@ def compare_clouds(path: Path, clouds: list[tuple[str, np.ndarray, np.ndarray]],
         best = f" (best {(fin.min() if column in LOWER_IS_BETTER else fin.max()):.3g})" if fin.size else ""
         im = _maps_row(fig, row, xyz, v, column, norm, centre, span, cell, row_title=f"{name}{best}: ")
     _colorbar(fig, im, column, any((~np.isfinite(v)).any() for _, _, v in clouds))
-    fig.suptitle(S.cite(title), x=0.01, y=0.99, ha="left", va="top")
+    fig.suptitle(title, x=0.01, y=0.99, ha="left", va="top")
     return S.save(fig, path)
 
 
@@ -211,7 +211,7 @@ def histograms(path: Path, rows: np.ndarray, columns: list[str], title: str) -> 
         ax.yaxis.set_major_locator(MaxNLocator(3, prune="lower"))  # the 0 count would sit on the first x label
         if k % ncol == 0:
             ax.set_ylabel("samples")
-    fig.suptitle(S.cite(title) + ": distribution of each index over the sampled workspace", x=0.01, y=0.995, ha="left",
+    fig.suptitle(title + ": distribution of each index over the sampled workspace", x=0.01, y=0.995, ha="left",
                  va="top")
     return S.save(fig, path)
 
@@ -245,5 +245,5 @@ def slices(path: Path, slice_data: list[dict], columns: list[str], title: str) -
     if handles:
         fig.legend([h for h, _ in handles], [t for _, t in handles], loc="lower center", bbox_to_anchor=(0.5, 0),
                    ncols=min(len(handles), 6), borderaxespad=0.2, handlelength=1.6)
-    fig.suptitle(S.cite(title) + ": index against each joint", x=0.01, y=0.995, ha="left", va="top")
+    fig.suptitle(title + ": index against each joint", x=0.01, y=0.995, ha="left", va="top")
     return S.save(fig, path)

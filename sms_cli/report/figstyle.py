@@ -30,7 +30,6 @@ GAP_PX = 16
 FULL_PX = CONTENT_PX
 HALF_PX = (CONTENT_PX - GAP_PX) // 2
 MIN_FONT_PT = 8.5  # 11.8 px at DPI
-MIN_FONT_PX = 10.0  # what the report promises on screen
 
 STYLE = {
     "figure.dpi": DPI, "savefig.dpi": DPI, "figure.facecolor": "white",
@@ -251,17 +250,6 @@ def limit_lines(ax, limit: float | None, data: np.ndarray | None = None, label: 
     lines = [ax.axhline(sgn * limit, color="#b3261e", lw=1.0, ls=":", label=label if sgn > 0 else None, zorder=1)
              for sgn in (1, -1)]
     return lines[0]
-
-
-THESES = {"seed 000": "Caldera 2019", "seed 001": "Chevallard 2019", "seed 002": "Vicariotto 2023",
-          "seed 003": "Ruggiero 2020", "seed 004": "Kraiem 2022"}
-
-
-def cite(text: str) -> str:
-    """Titles handed in by the stages name the theses by author and year, as users know them."""
-    for seed, work in THESES.items():
-        text = text.replace(seed, work)
-    return text
 
 
 def box3d(ax, elev: float = 22, azim: float = -55) -> None:

@@ -245,13 +245,15 @@ def analysis_section(a: dict[str, Any], folder: Path) -> Section:
 
 # ----------------------------------------------------------------- synthesis
 
-# Labels and units of the synthesis figures of results.json (dotted paths; '*' matches one key).
+GAMMA = "√s × ε_c unit"  # γ bounds √∫ε_cᵀε_c: ε_c in its own unit (rad or m), integrated over time
+COST = "s × ε_c unit²"
+# Labels and units of the synthesis figures of results.json (dotted paths).
 SYNTHESIS_FIGURES = {
-    "gamma": ("γ: guaranteed bound on √∫ε_cᵀε_c (solver)", "√s × ε_c unit"),
-    "gamma_certified": ("γ certified by the returned Lyapunov matrix", "√s × ε_c unit"),
-    "worst_cost.gramian": ("worst ∫ε_cᵀε_c over the initial errors (Gramian)", "s × ε_c unit²"),
-    "worst_cost.simulated": ("worst ∫ε_cᵀε_c over the initial errors (simulated)", "s × ε_c unit²"),
-    "worst_cost.gamma_squared": ("γ²: the bound it must stay below", "s × ε_c unit²"),
+    "gamma": ("γ: guaranteed bound on √∫ε_cᵀε_c (solver)", GAMMA),
+    "gamma_certified": ("γ certified by the returned Lyapunov matrix", GAMMA),
+    "worst_cost.gramian": ("worst ∫ε_cᵀε_c over the initial errors (Gramian)", COST),
+    "worst_cost.simulated": ("worst ∫ε_cᵀε_c over the initial errors (simulated)", COST),
+    "worst_cost.gamma_squared": ("γ²: the bound it must stay below", COST),
     "robustness.relaxation": ("robustness relaxation", ""),
     "robustness.linearisations": ("linearisations", "count"),
     "robustness.samples": ("sampled configurations", "count"),
@@ -303,8 +305,8 @@ GAIN_COLUMNS = {
 CHECKS = {
     "controller_poles": ("controller poles inside the requested region (worst relative margin)", "–"),
     "observer_poles": ("observer poles inside their region (worst relative margin)", "–"),
-    "certificate": ("the Lyapunov matrix proves γ (certified γ ≤ solver γ)", "√s × ε_c unit"),
-    "gamma_bound": ("worst ∫ε_cᵀε_c below γ²", "s × ε_c unit²"),
+    "certificate": ("the Lyapunov matrix proves γ (certified γ ≤ solver γ)", GAMMA),
+    "gamma_bound": ("worst ∫ε_cᵀε_c below γ²", COST),
     "actuator_authority": ("peak feedback acceleration / limit", "–"),
     "flexible_damping": ("least observer damping ≥ open-loop modal damping", "–"),
     "switching_gain": ("c·J_min − disturbance bound (least over the axes)", "N m"),

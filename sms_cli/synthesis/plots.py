@@ -58,6 +58,6 @@ def plot_pole_map(poles: list[dict], regions: dict[str, PoleRegion], target: Pat
             ax.set_ylim(-r, r)
             ax.set_title("zoom on the controller region")
         else:
-            ax.set_title(S.cite(title))
+            ax.set_title(title)
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
     return S.save(fig, target)
