@@ -174,3 +174,15 @@ def test_flagship_report_renders_in_chromium(tmp_path):
     from test_report_legibility import numeric_columns_without_unit
 
     assert numeric_columns_without_unit(html) == []  # the LMI tables too (observer gain, γ, verification)
+
+
+def test_report_lists_the_theses_the_mission_cites_with_titles(slew_results):
+    """The slew mission cites Caldera 2019 (in its description): the report's references name it with
+    its title, and no thesis the mission does not cite."""
+    from sms_cli.references import THESES
+
+    html = (slew_results / "report.html").read_text(encoding="utf-8")
+    refs = html[html.index('<section id="references">'):]
+    assert "<strong>Caldera 2019</strong>: " + THESES["Caldera 2019"] in refs
+    assert "Vicariotto 2023" not in refs and "Kraiem 2022" not in refs
+    assert not re.search(r"[Ss]eed 00\d", html)

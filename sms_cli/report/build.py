@@ -187,7 +187,21 @@ def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | N
         f.id = f"fig-{k + 1}"
     return {"mission": name, "description": str(run.get("description", "")), "date": str(run.get("date", "")),
             "verdict": text, "verdict_class": cls, "stage_rows": stage_rows, "front": first, "sections": shown,
-            "n_figures": sum(len(s.figures) for s in shown), "layout": _layout()}
+            "n_figures": sum(len(s.figures) for s in shown), "layout": _layout(), "references": _references(run)}
+
+
+def _references(run: dict[str, Any]) -> list[tuple[str, str]]:
+    """The theses the mission cites (its description and, when still there, its file), with titles."""
+    from sms_cli.references import cited
+
+    text = str(run.get("description", ""))
+    files = run.get("files") if isinstance(run.get("files"), dict) else {}
+    path = (files.get("mission") or {}).get("path") if isinstance(files.get("mission"), dict) else None
+    try:
+        text += "\n" + Path(path).read_text(encoding="utf-8", errors="replace") if path else ""
+    except OSError:
+        pass
+    return cited(text)
 
 
 def _layout() -> dict[str, int]:

@@ -26,7 +26,8 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
 
     def finish(fig, axes, filename):
         for a in axes:
-            a.set_xlim(float(t[0]), float(t[-1]))
+            if t[-1] > t[0]:  # a run that stopped at its first sample has no time span to show
+                a.set_xlim(float(t[0]), float(t[-1]))
         S.phase_marks(axes[0], starts, names)
         for a in axes[1:]:
             S.phase_marks(a, starts)
