@@ -23,6 +23,14 @@ def runner() -> CliRunner:
 EXCEPTION_TEXT = re.compile(r"\b[A-Za-z_]\w*(?:Error|Exception|Warning|Interrupt)\b|Traceback|\.py:\d+")
 
 
+def assert_clean(result, code: int, *texts) -> None:
+    """The exit code, each text (a path, a phrase) in the output, nothing the error contract forbids."""
+    assert result.exit_code == code, result.output
+    for t in texts:
+        assert str(t) in result.output, result.output
+    assert not EXCEPTION_TEXT.search(result.output), result.output
+
+
 def run_cli(*args: str):
     """Invoke ``sms`` in-process; returns click's Result (exit_code, stdout, stderr)."""
     from sms_cli.cli import app

@@ -13,16 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from conftest import EXCEPTION_TEXT, MISSIONS, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, assert_clean, run_cli
 
 EXC_NAME = EXCEPTION_TEXT
-
-
-def assert_clean(r, code: int, *texts: str | Path) -> None:
-    assert r.exit_code == code, r.output
-    for t in texts:
-        assert str(t) in r.output, r.output
-    assert not EXC_NAME.search(r.output), r.output
 
 
 @pytest.fixture(scope="module")

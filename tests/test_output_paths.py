@@ -14,18 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from conftest import EXCEPTION_TEXT, MISSIONS, run_cli
+from conftest import EXCEPTION_TEXT, MISSIONS, assert_clean, run_cli
 
 LEO = MISSIONS / "hipparcos_leo.yaml"
 EXC_NAME = EXCEPTION_TEXT
-
-
-def assert_clean(r, code: int, *names: str | Path) -> None:
-    """Exit code, the paths named, no exception class name or source path in the text."""
-    assert r.exit_code == code, r.output
-    for n in names:
-        assert str(n) in r.output, r.output
-    assert not EXC_NAME.search(r.output), r.output
 
 
 def stray(folder: Path) -> list[Path]:
@@ -89,14 +81,18 @@ def test_output_file_in_a_folder_root_cannot_write(leo_results, args):
     assert "PASS" not in r.output and not stray(leo_results)  # refused before the check ran
 
 
-def test_read_only_file_system(tmp_path, monkeypatch):
-    """A read-only mount, simulated: the probe file cannot be created (EROFS)."""
-    def erofs(*a, **k):
-        raise OSError(errno.EROFS, "Read-only file system")
+@pytest.mark.parametrize("command, err, code, words", [
+    ("budget", OSError(errno.EROFS, "Read-only file system"), 2, "read-only file system"),  # a read-only mount
+    ("run", OSError(errno.ENOSPC, "No space left on device"), 3, "the disk is full"),  # disk full at the check
+])
+def test_the_probe_file_cannot_be_created(tmp_path, monkeypatch, command, err, code, words):
+    """The up-front check of the output folder fails to create its probe file (simulated)."""
+    def fail(*a, **k):
+        raise err
 
-    monkeypatch.setattr("sms_cli.outputs.tempfile.mkstemp", erofs)
-    r = run_cli("budget", NO_MISSION, "-o", tmp_path / "out")
-    assert_clean(r, 2, tmp_path / "out", "read-only file system")
+    monkeypatch.setattr("sms_cli.outputs.tempfile.mkstemp", fail)
+    r = run_cli(command, NO_MISSION, "-o", tmp_path / "out")
+    assert_clean(r, code, tmp_path / "out", words)
     assert not (tmp_path / "out").exists()
 
 
@@ -177,15 +173,6 @@ def test_disk_full_writing_a_baseline(tmp_path, monkeypatch, leo_results):
     r = run_cli("check", leo_results, "--write-baseline", b)
     assert_clean(r, 3, b, "the disk is full")
     assert not b.exists() and not stray(tmp_path)
-
-
-def test_disk_full_at_the_check_is_exit_3(tmp_path, monkeypatch):
-    def enospc(*a, **k):
-        raise OSError(errno.ENOSPC, "No space left on device")
-
-    monkeypatch.setattr("sms_cli.outputs.tempfile.mkstemp", enospc)
-    r = run_cli("run", NO_MISSION, "-o", tmp_path / "out")
-    assert_clean(r, 3, tmp_path / "out", "the disk is full")
 
 
 @pytest.mark.parametrize("call", ["replace", "chmod"])
