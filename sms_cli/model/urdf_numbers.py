@@ -102,8 +102,11 @@ def number(el, attr: str, default: float) -> float:
 
 
 def vector(el, attr: str, default: tuple[float, ...]) -> list[float]:
-    """A vector attribute, or the default when absent or malformed (``check_numbers`` reports those)."""
+    """A vector attribute, or the default when absent, malformed or out of range (``check_numbers``
+    reports those; it already made an out-of-range ``<limit>`` "unbounded")."""
     if el is None or el.get(attr) is None:
         return list(default)
     values, _ = parse_numbers(el.get(attr), len(default))
-    return values if values is not None else list(default)
+    if values is None or any(abs(x) > MAX_MAGNITUDE for x in values):
+        return list(default)
+    return values
