@@ -215,12 +215,17 @@ def test_second_writer_is_refused_naming_the_holder(tmp_path):
         r = run_cli("inspect", out / "simulation.mcap")  # a reader is welcome, and told the file grows
         assert r.exit_code == 0 and "status: recording" in r.output and f"still being written (PID {proc.pid})" in r.output
         for cmd in (["run", MISSIONS / "basilisk_rw_reference.yaml", "-o", out],
-                    ["simulate", MISSIONS / "caldera_s1_slew.yaml", "-o", out]):
+                    ["simulate", MISSIONS / "caldera_s1_slew.yaml", "-o", out],
+                    ["budget", MISSIONS / "hipparcos_leo.yaml", "-o", out],
+                    ["analyze", MISSIONS / "demeter_3dof.yaml", "-o", out],
+                    ["synthesize", MISSIONS / "caldera_s1_slew.yaml", "-o", out]):
             r = subprocess.run([sys.executable, "-m", "sms_cli", *map(str, cmd)], cwd=ROOT, capture_output=True, text=True,
                                timeout=120)
             assert r.returncode == 2, r.stderr
             assert str(out) in r.stderr and f"PID {proc.pid}" in r.stderr and "'first mission'" in r.stderr
             assert "-o " in r.stderr and not EXCEPTION_NAME.search(r.stderr)
+        # refused before writing anything: no budget, analysis or synthesis file beside the first run's
+        assert not [p.name for p in out.iterdir() if p.name.startswith(("budget", "analysis", "gains", "synthesis"))]
     finally:
         proc.send_signal(signal.SIGINT)
         code, text = finish(proc, err)
@@ -242,6 +247,16 @@ def test_results_of_another_mission_are_not_mixed(tmp_path):
     r = run_cli("simulate", MISSIONS / "basilisk_rw_reference.yaml", "-o", out)
     assert r.exit_code == 0 and "another mission" not in r.stderr
     assert set(json.loads((out / "results.json").read_text())) == {"compile", "simulate", "run", "requirements"}
+
+
+@pytest.mark.parametrize("command, mission", [("budget", "hipparcos_leo.yaml"), ("analyze", "demeter_3dof.yaml")])
+def test_stage_commands_do_not_mix_missions_either(tmp_path, command, mission):
+    out = tmp_path / "out"
+    assert run_cli("simulate", MISSIONS / "basilisk_rw_reference.yaml", "-o", out).exit_code == 0
+    r = run_cli(command, MISSIONS / mission, "-o", out, "--no-plots" if command == "analyze" else "--json")
+    assert r.exit_code == 0, r.output
+    assert "holds the results of another mission ('basilisk_rw_reference'" in r.stderr
+    assert "simulate" not in json.loads((out / "results.json").read_text())
 
 
 # --------------------------------------------------------------------------- item 13: disk full

@@ -68,11 +68,12 @@ def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, 
 
 def analyze_into(loaded, results_dir: Path | str, *, plots: bool | None = None,
                  progress: bool | None = None) -> tuple[dict, list[LinearModel]]:
-    """``analyze_mission`` writing its files and the ``analysis`` section into ``results_dir``."""
+    """``analyze_mission`` writing its files and the ``analysis`` section into ``results_dir``,
+    holding the folder for the whole command (``ResultsDir.writing``)."""
     out = Path(results_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    section, models = analyze_mission(loaded, out, plots=plots, progress=progress)
-    ResultsDir(out).update("analysis", section)
+    with ResultsDir(out).writing(loaded.mission.name, loaded.path):
+        section, models = analyze_mission(loaded, out, plots=plots, progress=progress)
+        ResultsDir(out).update("analysis", section)
     return section, models
 
 

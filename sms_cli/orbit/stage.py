@@ -284,5 +284,8 @@ def write_budget(data: dict[str, Any], results_dir: Path | str | ResultsDir) -> 
 
 
 def run_budget(loaded_mission, results_dir: Path | str | ResultsDir) -> dict[str, Any]:
-    """Evaluate the mission's ``budget:`` section; write results.json, budget.csv and the plots."""
-    return write_budget(compute_budget(loaded_mission), results_dir)
+    """Evaluate the mission's ``budget:`` section; write results.json, budget.csv and the plots,
+    holding the results folder for the whole command (``ResultsDir.writing``)."""
+    rd = results_dir if isinstance(results_dir, ResultsDir) else ResultsDir(results_dir)
+    with rd.writing(loaded_mission.mission.name, loaded_mission.path):
+        return write_budget(compute_budget(loaded_mission), rd)

@@ -62,10 +62,12 @@ class Synthesized:
 
 
 def run_synthesis(loaded, out_dir: Path | str, plots: bool = True) -> dict[str, Any]:
-    """Run the mission's synthesis; return the ``synthesis`` section written to results.json."""
+    """Run the mission's synthesis; return the ``synthesis`` section written to results.json,
+    holding the results folder for the whole command (``ResultsDir.writing``)."""
     out = Path(out_dir)
-    done = synthesize_mission(loaded, on_infeasible=lambda section: ResultsDir(out).update("synthesis", section))
-    write_synthesis(done, loaded.mission.name, out, plots)
+    with ResultsDir(out).writing(loaded.mission.name, loaded.path):
+        done = synthesize_mission(loaded, on_infeasible=lambda section: ResultsDir(out).update("synthesis", section))
+        write_synthesis(done, loaded.mission.name, out, plots)
     check_verified(done.section)
     return done.section
 
