@@ -146,6 +146,7 @@ CATALOGUE = [
     ("zero mass", MASS, 0, 0.5),
     ("negative frequency with a unit", MODE + ("frequency",), "-0.16 Hz", "0.16 Hz"),
     ("negative frequency", ("simulation", "control_rate"), -10, 10),
+    ("negative recording rate", ("simulation", "record_rate"), "-10 Hz", "10 Hz"),
     ("zero time step", ("simulation", "dt"), "0 s", "10 ms"),
     ("negative optional inertia", ("wheels", "declared"), [{**_WHEEL, "transverse_inertia": "-0.01 kg m^2"}],
      [{**_WHEEL, "transverse_inertia": "0.01 kg m^2"}]),

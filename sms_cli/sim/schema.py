@@ -136,7 +136,7 @@ class SimulationSpec(StrictModel):
 
     dt: Time = Field(0.01, gt=0, description="plant step (s)")
     control_rate: Frequency = Field(10.0, gt=0, description="controller rate (Hz); ZOH between updates")
-    record_rate: Frequency | None = Field(20.0, description="MCAP sample rate (Hz); null records every plant step")
+    record_rate: Frequency | None = Field(20.0, gt=0, description="MCAP sample rate (Hz); null records every plant step")
     attitude: AttitudeLawSpec | Literal["from_gains"] | None = Field(
         None, description="base attitude law, or 'from_gains': the law `sms synthesize` wrote into gains.yaml "
                           "(simulation.attitude block) in the results folder")
