@@ -73,11 +73,10 @@ def _inertia6(v: list[float]) -> list[float]:
         v = [v[0], v[1], v[2], 0.0, 0.0, 0.0]
     if len(v) != 6:
         raise ValueError("inertia is [ixx, iyy, izz] or [ixx, iyy, izz, ixy, ixz, iyz]")
-    import numpy as np  # here, not at module level: `sms --help` must not import numpy
+    from sms_cli.inertia import principal_moments
 
-    ixx, iyy, izz, ixy, ixz, iyz = v
-    moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
-    tol = 1e-9 * max(float(np.abs(moments).sum()), 1e-300)
+    moments = principal_moments(*v)
+    tol = 1e-9 * max(float(abs(moments).sum()), 1e-300)
     shown = ", ".join(f"{m:.6g}" for m in moments)
     if moments[0] < -tol:
         raise SpecError(f"principal moments of inertia {shown} kg m^2: a moment of inertia cannot be negative",

@@ -135,6 +135,6 @@ def rotor_link_name(wheel_name: str) -> str:
 
 def payload_inertia(mass: float, com: np.ndarray, inertia6: list[float]) -> pin.Inertia:
     """Pinocchio spatial inertia of a payload: inertia6 about its CoM, in the attach frame's axes."""
-    ixx, iyy, izz, ixy, ixz, iyz = inertia6
-    rot = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    return pin.Inertia(mass, np.asarray(com, float), rot)
+    from sms_cli.inertia import inertia_tensor
+
+    return pin.Inertia(mass, np.asarray(com, float), inertia_tensor(*inertia6))

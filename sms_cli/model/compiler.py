@@ -12,6 +12,7 @@ import pinocchio as pin
 from sms_cli.errors import InputError, Location, Problem, Warnings
 from sms_cli.mission.load import LoadedMission
 from sms_cli.model.build import AddedRotor, add_rotor, build_rigid_model, frame_id, payload_inertia, rotor_link_name
+from sms_cli.inertia import inertia_tensor
 from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_matrix
 from sms_cli.model.mass_check import add_placeholders, diagnose
 from sms_cli.model.system import Appendage, ArmJoint, Partitions, Payload, Spring, SystemModel, Wheel
@@ -351,9 +352,9 @@ def _link_inertia_at_frame(sm: SystemModel, info: UrdfInfo, link: str, frame_id:
     """6×6 spatial inertia ([v; ω] order) of a URDF link's own <inertial>, expressed at a frame."""
     if link not in info.inertials:
         return None
-    mass, xyz, rpy, (ixx, iyy, izz, ixy, ixz, iyz) = info.inertials[link]
+    mass, xyz, rpy, moments = info.inertials[link]
     R = euler_zyx_to_matrix(*rpy)
-    I_c = R @ np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]) @ R.T
+    I_c = R @ inertia_tensor(*moments) @ R.T
     Y_link = pin.Inertia(mass, np.asarray(xyz, float), I_c)  # in the link frame
     d = sm.model.createData()
     pin.framesForwardKinematics(sm.model, d, sm.q0)

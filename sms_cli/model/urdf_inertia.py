@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sms_cli.inertia import inertia_tensor
+
 #: Triangle-inequality violations up to this fraction of the largest principal moment are read as
 #: rounding of CAD output (values printed with 2–3 significant digits; the corpora measured in
 #: ``benches/bench_urdf_corpus.py`` show 0.2–3 %). Beyond it the moments are likely wrong.
@@ -31,10 +33,6 @@ class InertialFinding:
     kind: str  # "negative_mass" (an error) | "massless" | "point_mass" | "rounding" | "nonphysical"
     message: str
     hint: str = ""
-
-
-def _tensor(ixx, iyy, izz, ixy, ixz, iyz) -> np.ndarray:
-    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]], dtype=float)
 
 
 def _violation(eig: np.ndarray) -> tuple[float, float]:
@@ -55,7 +53,7 @@ def classify_inertial(link: str, mass: float, moments: list[float]) -> InertialF
     if mass < 0.0:
         return InertialFinding("negative_mass", f"link '{link}' has a negative mass ({mass:g} kg)",
                                "a mass is ≥ 0: check the sign; remove <inertial> for a massless frame link")
-    T = _tensor(*moments)
+    T = inertia_tensor(*moments)
     if mass == 0.0:
         if np.any(T != 0.0):
             return InertialFinding("nonphysical", f"link '{link}' has zero mass but a non-zero inertia",

@@ -217,8 +217,9 @@ def _body(spec, sm):
         return SystemBody(sm, online=(inertia == "online"))
     import numpy as np
 
-    ixx, iyy, izz, ixy, ixz, iyz = inertia
-    J = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    from sms_cli.inertia import inertia_tensor
+
+    J = inertia_tensor(*inertia)
     G = np.array([w.axis for w in sm.wheels]).T if sm.wheels else None
     Js = [w.spin_inertia for w in sm.wheels] if sm.wheels else None
     return RigidBody(J, G, Js)
