@@ -44,8 +44,9 @@ def _assert_whole(folder: Path) -> list[str]:
 
 
 # (progress line to wait for on stderr, extra delay): interrupts inside compile, analyze, simulate
-# (the MCAP is being written) and the report
-MOMENTS = [("] compile …", 0.2), ("] analyze …", 0.5), ("] simulate …", 0.6), ("] simulate: ok", 0.0)]
+# (the MCAP is being written: the signal goes once the file exists, not after a fixed delay, which
+# a faster run outlives) and the report
+MOMENTS = [("] compile …", 0.2), ("] analyze …", 0.5), ("] simulate …", None), ("] simulate: ok", 0.0)]
 
 
 def test_interrupted_runs_leave_only_whole_files(tmp_path):
@@ -62,7 +63,12 @@ def test_interrupted_runs_leave_only_whole_files(tmp_path):
             err_lines.append(line)
             if marker in line:
                 break
-        time.sleep(delay)
+        if delay is None:
+            deadline = time.monotonic() + 60
+            while not (out / "simulation.mcap").exists() and proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.002)
+        else:
+            time.sleep(delay)
         proc.send_signal(signal.SIGINT)
         err_lines += proc.stderr.readlines()
         proc.wait(timeout=120)
