@@ -24,6 +24,7 @@ from sms_cli import __version__
 from sms_cli.errors import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
+    EXIT_REQUIREMENTS,
     SmsError,
 )
 from sms_cli.failures import failure
@@ -358,6 +359,81 @@ def run_cmd(
         return summary.exit_code
 
     run_guarded(body, _results_folder(default_out(mission, out)))
+
+
+class _CampaignGroup(typer.core.TyperGroup):
+    """``sms campaign MISSION.yaml`` runs the campaign (the ``start`` command, written or not);
+    ``sms campaign rerun RESULTS --run ID`` replays one of its runs."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and args[0] not in ("--help", "-h"):
+            args = ["start", *args]
+        return super().parse_args(ctx, args)
+
+
+campaign_app = typer.Typer(cls=_CampaignGroup, no_args_is_help=True, rich_markup_mode=None, help=(
+    "Monte-Carlo dispersions and parameter sweeps of a mission (its campaign: section), on a local Dask "
+    "cluster or a remote scheduler: manifest, Parquet metrics, statistics, pass rates, sensitivities.\n\n"
+    "\b\n    sms campaign missions/campaign_caldera_slew.yaml -o results/campaign_caldera_slew\n"
+    "    sms campaign rerun results/campaign_caldera_slew --run 17\n\n" + EXIT_CODES_HELP))
+app.add_typer(campaign_app, name="campaign")
+
+
+@campaign_app.command("start", cls=_Command)
+def campaign_cmd(
+    mission: MissionArg,
+    out: OutOpt = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", "-w", min=1, help=(
+        "worker processes of the local Dask cluster (default: one per core)"))] = None,
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", metavar="tcp://HOST:PORT", help=(
+        "run on this Dask scheduler's workers instead of a local cluster"))] = None,
+    resume: Annotated[bool, typer.Option("--resume", help=(
+        "continue the campaign in the results folder: run only what is missing or failed"))] = False,
+    restart: Annotated[bool, typer.Option("--restart", help=(
+        "start over in a folder that holds results: they move to previous/<time>/ (nothing is deleted)"))] = False,
+    entropy: Annotated[Optional[int], typer.Option("--entropy", min=0, help=(
+        "seed entropy when the campaign file gives none (default: drawn and recorded in campaign.json)"))] = None,
+    progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar (default: on a terminal)")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print the campaign section of results.json as JSON")] = False,
+) -> None:
+    """Run the mission's campaign: every run's dispersed mission through its stages, then statistics.
+
+    Exit 1 when a campaign requirement fails (judged on its confidence bound), 130 on Ctrl-C (what
+    finished is kept: --resume goes on).
+    """
+    folder = default_out(mission, out)
+
+    def body() -> int:
+        from sms_cli.campaign.stage import define, format_campaign, run
+        from sms_cli.mission.load import load_mission
+
+        campaign = define(load_mission(mission), entropy)
+        section = run(campaign, folder, scheduler=scheduler, workers=workers, resume=resume, restart=restart,
+                      progress=progress)
+        emit(section, as_json, lambda s: format_campaign(s, folder))
+        return EXIT_REQUIREMENTS if any(v["status"] != "pass" for v in section["requirements"]) else 0
+
+    run_guarded(body, _results_folder(folder))
+
+
+@campaign_app.command("rerun", cls=_Command)
+def campaign_rerun_cmd(
+    results: ResultsArg,
+    run_id: Annotated[int, typer.Option("--run", "-r", min=0, help="the run to replay (its id in the manifest)")],
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="DIR", help=(
+        "where to write the run's results and recording (default: RESULTS_DIR/runs/<id>/)"))] = None,
+) -> None:
+    """Replay one run of a campaign exactly, with its recording (simulation.mcap), and compare its
+    metrics with the campaign's (exit 1 when they differ)."""
+
+    def body() -> int:
+        from sms_cli.campaign.rerun import format_rerun, rerun
+
+        outcome = rerun(results, run_id, out)
+        typer.echo(format_rerun(outcome))
+        return 0 if outcome["identical"] else EXIT_REQUIREMENTS
+
+    run_guarded(body, _results_folder(out) if out is not None else [])
 
 
 @command("report")

@@ -14,6 +14,7 @@ from sms_cli.mission.system import (
     WheelsSpec,
 )
 from sms_cli.analysis.schema import AnalysisSpec
+from sms_cli.campaign.schema import CampaignSpec
 from sms_cli.check.schema import RequirementSpec
 from sms_cli.orbit.schema import BudgetSpec
 from sms_cli.sim.schema import SimulationSpec
@@ -46,6 +47,9 @@ class Mission(StrictModel):
                                           "{name, metric: dotted path, max | min | equals (+ tol), unit, stage}")
     synthesis: SynthesisSpec | None = Field(
         None, description="controller/observer gain synthesis (sms synthesize): the LMI of Kraiem (2022), PD, LQR or SMC")
+    campaign: CampaignSpec | None = Field(
+        None, description="Monte-Carlo dispersions or a parameter sweep of this mission (sms campaign): designs, "
+                          "dispersions at dotted paths, stages, timeout, retries, campaign requirements")
 
     @model_validator(mode="after")
     def _unique_names(self):

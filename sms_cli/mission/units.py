@@ -391,3 +391,24 @@ LinearStiffness = _quantity("linear stiffness")
 LinearDamping = _quantity("linear damping")
 GravitationalParameter = _quantity("gravitational parameter")
 Dimensionless = _quantity("dimensionless")
+
+
+def any_to_si(value: Any) -> float:
+    """A bare number (SI), a percentage (``"3 %"`` → 0.03) or ``"<number> <unit>"`` in SI, whatever
+    the unit's dimension (for values whose dimension is the target field's, checked there)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise UnitError(f"expected a number or a number and a unit, got {clip(value)}",
+                        hint="write e.g. 0.03, \"3 %\" or \"2 deg\"")
+    if not isinstance(value, str):
+        return float(value)
+    text = value.strip()
+    if text.endswith("%"):
+        try:
+            return float(text[:-1]) / 100.0
+        except ValueError:
+            raise UnitError(f"cannot read {clip(value)} as a percentage", hint="write e.g. \"3 %\"") from None
+    m = _QUANTITY_RE.match(text)
+    if not m:
+        raise UnitError(f"cannot read {clip(value)} as a number and a unit", hint="write e.g. 0.03 or \"2 deg\"")
+    factor, _ = _parse_unit_expression(m.group(2)) if m.group(2) else (1.0, None)
+    return float(m.group(1)) * factor

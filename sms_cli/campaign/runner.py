@@ -1,0 +1,196 @@
+"""One campaign run, in-process: the mission with its samples → stages → metrics and read-back.
+
+``execute_run`` is what a worker (or its sandbox) calls. It writes nothing: the metrics, the
+requirement verdicts and the parameters read back from the built model go back to the client in
+a ``RunOutcome``; ``sms campaign rerun`` replays one run with its recording (``record_run``).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import socket
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sms_cli.campaign import paths
+from sms_cli.campaign.tasks import RunOutcome, RunTask
+from sms_cli.errors import EXIT_INPUT, EXIT_NUMERICAL, EXIT_OK, EXIT_REQUIREMENTS, InputError, NumericalError
+
+#: results.json keys that are not outcomes of the physics (times, files) and stay out of the metrics
+_NOT_METRICS = {"timing", "files", "artifacts", "wall_s", "us_per_step", "real_time_factor"}
+#: longest list flattened into metrics (longer ones are per-sample data, not figures)
+_MAX_LIST = 64
+
+
+def dispersed_tree(task: RunTask) -> dict[str, Any]:
+    """The run's mission data: the campaign's tree with each sample written at its path."""
+    from sms_cli.mission.load import load_mission_dict
+
+    tree = copy.deepcopy(task.tree)
+    tree.pop("campaign", None)
+    if not task.samples:
+        return tree
+    nominal = load_mission_dict(tree, base_dir=task.base_dir, name=task.name).mission
+    for path, value in task.samples.values():
+        if paths.is_link_path(paths.split(path)):
+            _write_link(tree, path, value)
+        else:
+            paths.write(tree, path, np.asarray(value, float) if isinstance(value, list) else value, nominal)
+    return tree
+
+
+def _write_link(tree: dict, path: str, value) -> None:
+    _, _, link, field = paths.split(path)
+    links = tree.setdefault("robot", {}).setdefault("links", {})
+    entry = links.setdefault(link, {})
+    entry[field] = [float(x) for x in value] if isinstance(value, (list, np.ndarray)) else float(value)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    problems = getattr(exc, "problems", None)
+    if problems:
+        p = problems[0]
+        return " ".join(filter(None, [getattr(p, "field", None) and f"{p.field}:", p.message]))
+    return text[0] if text else type(exc).__name__
+
+
+def flatten(section: Any, prefix: str, out: dict[str, float]) -> None:
+    """Every finite-or-NaN number of a results section by dotted key (list items as [name] or [i])."""
+    if isinstance(section, dict):
+        for k, v in section.items():
+            if k not in _NOT_METRICS:
+                flatten(v, f"{prefix}.{k}" if prefix else str(k), out)
+    elif isinstance(section, (list, tuple)) and len(section) <= _MAX_LIST:
+        for i, v in enumerate(section):
+            name = v.get("name") if isinstance(v, dict) else None
+            flatten(v, f"{prefix}[{name if isinstance(name, str) else i}]", out)
+    elif isinstance(section, (bool, np.bool_)):
+        out[prefix] = float(bool(section))
+    elif isinstance(section, (int, float, np.integer, np.floating)):
+        out[prefix] = float(section)
+    elif section is None:
+        out[prefix] = math.nan
+
+
+def read_back(loaded, sm, task: RunTask) -> dict[str, float | list[float]]:
+    """The value of each dispersed path in what ran: the built model for robot links and payloads,
+    the validated mission (the specs the stages consumed) for the rest."""
+    out: dict[str, float | list[float]] = {}
+    for name, (path, _) in task.samples.items():
+        parts = paths.split(path)
+        if parts[0] == "payloads" and len(parts) == 3:
+            value = _payload_value(loaded.mission, sm, parts[1], parts[2])
+        else:
+            value = paths.nominal(loaded.mission, path, sm)
+        out[name] = [float(x) for x in value] if isinstance(value, np.ndarray) else float(value)
+    return out
+
+
+def _payload_value(mission, sm, ref: str, field: str):
+    """A payload's mass from the built model (kg); its CoM and inertia as the model was given them."""
+    spec = paths._child(mission.payloads, ref, "payloads")
+    if field == "mass":
+        return float(sm.payloads[spec.name].inertia_in_joint.mass)
+    return paths.nominal(mission, f"payloads.{ref}.{field}")
+
+
+def execute_run(task: RunTask) -> RunOutcome:
+    """Run the task's stages on its dispersed mission (nothing written, no recording)."""
+    t0 = time.perf_counter()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    base = dict(run=task.run, worker=worker, attempt=task.attempt)
+    try:
+        loaded, sm = _build(task)
+    except InputError as exc:
+        return RunOutcome(status="invalid", exit_status=EXIT_INPUT, message=_one_line(exc),
+                          wall_s=time.perf_counter() - t0, **base)
+    params = read_back(loaded, sm, task)
+    results, status, message = _stages(loaded, task.stages)
+    metrics: dict[str, float] = {}
+    for key, section in results.items():
+        flatten(section, key, metrics)
+    verdicts = _requirements(loaded, results)
+    failed = any(v is False for v in verdicts.values())
+    exit_status = EXIT_NUMERICAL if status == "diverged" else EXIT_REQUIREMENTS if failed else EXIT_OK
+    return RunOutcome(status=status, exit_status=exit_status, message=message, metrics=metrics,
+                      params={k: (v if isinstance(v, float) else v) for k, v in params.items()},
+                      requirements=verdicts, wall_s=time.perf_counter() - t0, **base)
+
+
+def _build(task: RunTask):
+    """(LoadedMission, SystemModel) of the dispersed mission; InputError when a draw is refused."""
+    import sms_cli.api as api
+    from sms_cli.mission.load import load_mission_dict
+
+    loaded = load_mission_dict(dispersed_tree(task), base_dir=task.base_dir, name=task.name)
+    return loaded, api.compile(loaded)
+
+
+def _stages(loaded, stages: tuple[str, ...]) -> tuple[dict[str, Any], str, str]:
+    """results.json sections of the stages, the run's status and why it stopped early."""
+    import sms_cli.api as api
+
+    results: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory(prefix="sms-campaign-") as gains_dir:
+        for stage in stages:
+            try:
+                if stage == "analyze":
+                    results["analysis"] = api.analyze(loaded, plots=False).section
+                elif stage == "synthesize":
+                    done = api.synthesize(loaded, out=gains_dir, plots=False)
+                    results["synthesis"] = done.section
+                else:
+                    gains = gains_dir if "synthesize" in stages else None
+                    results["simulate"] = api.simulate(loaded, gains_dir=gains).section
+            except NumericalError as exc:
+                partial = getattr(exc, "result", None)
+                if partial is not None:
+                    results["simulate" if stage == "simulate" else "synthesis"] = partial.section
+                return results, "diverged", _one_line(exc)
+    return results, "ok", ""
+
+
+def _requirements(loaded, results: dict[str, Any]) -> dict[str, bool | None]:
+    """The mission's requirements on the stages that ran: passed, failed (False) or unreadable (None)."""
+    from sms_cli.check.requirements import evaluate
+
+    out: dict[str, bool | None] = {}
+    for req in loaded.mission.requirements:
+        if req.section() not in results:
+            continue
+        v = evaluate(req, results)
+        out[req.name] = None if v.status == "error" else v.passed
+    return out
+
+
+def record_run(task: RunTask, out: Path) -> dict[str, Any]:
+    """Replay one run with the recording (``sms campaign rerun``): the CLI's stages into ``out``.
+    Returns the run's metrics (the same flattening as ``execute_run``)."""
+    import sms_cli.api as api
+
+    loaded, _ = _build(task)
+    results: dict[str, Any] = {}
+    for stage in task.stages:
+        try:
+            if stage == "analyze":
+                results["analysis"] = api.analyze(loaded, out=out, plots=False).section
+            elif stage == "synthesize":
+                results["synthesis"] = api.synthesize(loaded, out=out, plots=False).section
+            else:
+                results["simulate"] = api.simulate(loaded, out=out).section
+        except NumericalError as exc:
+            partial = getattr(exc, "result", None)
+            if partial is not None:
+                results["simulate" if stage == "simulate" else "synthesis"] = partial.section
+            break
+    metrics: dict[str, float] = {}
+    for key, section in results.items():
+        flatten(section, key, metrics)
+    return metrics
