@@ -36,6 +36,21 @@ from sms_cli.mission.units import (
 )
 
 
+class LinkInertialSpec(StrictModel):
+    """Replaces parts of a URDF link's ``<inertial>``; a field not given keeps the URDF's value.
+
+    Frames: the link frame (as the URDF's ``<inertial><origin xyz>``); the inertia is about the
+    CoM in the link axes (an ``<inertial>`` whose origin has an rpy is replaced by this one in
+    the link axes). The six numbers follow ``sms_cli.inertia`` (URDF's ixy = −∫xy dm)."""
+
+    mass: Mass | None = Field(None, gt=0, description="link mass (kg); default: the URDF's")
+    com: Position3 | None = Field(None, description="centre of mass in the link frame (m); default: the URDF's "
+                                                     "<inertial><origin xyz>")
+    inertia: InertiaTensor | None = Field(
+        None, description="[ixx, iyy, izz] or [ixx, iyy, izz, ixy, ixz, iyz] about the CoM in the link axes "
+                          "(kg m^2), as in a URDF <inertia>; default: the URDF's")
+
+
 class RobotSpec(StrictModel):
     """The URDF robot. Its root link (or ``base_link``) becomes a free-flying base."""
 
@@ -58,6 +73,9 @@ class RobotSpec(StrictModel):
         False, description="for robots with massless moving links (visual-only descriptions): give each such body a "
                            "placeholder inertia (1e-6 of the robot's mass as a 5 cm sphere at its joint) so that "
                            "workspace maps and kinematic indices run; dynamics stages then refuse the model")
+    links: dict[str, LinkInertialSpec] = Field(
+        default_factory=dict, description="per URDF link name: mass, com and/or inertia replacing the URDF's "
+                                          "<inertial> values (links merged by fixed joints included)")
 
 
 class WheelLimits(StrictModel):

@@ -17,6 +17,8 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.errors import InputError, Location, Problem
+from sms_cli.inertia import inertia_tensor
+from sms_cli.model.conventions import euler_zyx_to_matrix
 
 
 @contextlib.contextmanager
@@ -135,6 +137,30 @@ def rotor_link_name(wheel_name: str) -> str:
 
 def payload_inertia(mass: float, com: np.ndarray, inertia6: list[float]) -> pin.Inertia:
     """Pinocchio spatial inertia of a payload: inertia6 about its CoM, in the attach frame's axes."""
-    from sms_cli.inertia import inertia_tensor
-
     return pin.Inertia(mass, np.asarray(com, float), inertia_tensor(*inertia6))
+
+
+def link_inertia(mass: float, com, inertia6, rpy=(0.0, 0.0, 0.0)) -> pin.Inertia:
+    """Spatial inertia of a URDF link in its link frame: ``inertia6`` (sms_cli.inertia convention) about
+    the CoM ``com`` (m, link frame), in the axes of the inertial frame rotated by URDF ``rpy`` (rad)."""
+    R = euler_zyx_to_matrix(*rpy)
+    return spatial_inertia(mass, com, R @ inertia_tensor(*inertia6) @ R.T)
+
+
+def spatial_inertia(mass: float, com, tensor: np.ndarray) -> pin.Inertia:
+    """``pin.Inertia(mass, com, tensor)`` (tensor about the CoM) without the constructor's positivity
+    check: the URDF lint accepts moments that are negative by round-off, as Pinocchio's parser does."""
+    Y = pin.Inertia.Zero()
+    Y.mass, Y.lever, Y.inertia = float(mass), np.asarray(com, float), np.asarray(tensor, float)
+    return Y
+
+
+def replace_link_inertia(model: pin.Model, fid: int, old: pin.Inertia, new: pin.Inertia) -> None:
+    """Swap a link's inertia ``old`` for ``new`` (both in the link frame) in the body that carries it:
+    the parent joint of its frame ``fid``. Pinocchio merges a link fixed to its parent into that
+    parent's body, at the link frame's placement; the other links of the body keep their share."""
+    frame = model.frames[fid]
+    j = frame.parentJoint
+    params = (model.inertias[j].toDynamicParameters() - frame.placement.act(old).toDynamicParameters()
+              + frame.placement.act(new).toDynamicParameters())
+    model.inertias[j] = pin.Inertia.FromDynamicParameters(params)

@@ -11,7 +11,8 @@ import pinocchio as pin
 
 from sms_cli.errors import InputError, Location, Problem, Warnings
 from sms_cli.mission.load import LoadedMission
-from sms_cli.model.build import AddedRotor, add_rotor, build_rigid_model, frame_id, payload_inertia, rotor_link_name
+from sms_cli.model.build import (AddedRotor, add_rotor, build_rigid_model, frame_id, link_inertia, payload_inertia,
+                                 replace_link_inertia, rotor_link_name, spatial_inertia)
 from sms_cli.inertia import inertia_tensor
 from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_matrix
 from sms_cli.model.mass_check import add_placeholders, diagnose
@@ -138,6 +139,7 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
                                     "robot.arm_joints", "add them to arm_joints, wheels.joints or springs"))
     else:
         arm_names = [j for j in movable if j not in urdf_wheels and j not in springs_spec]
+    link_inertias = _link_inertias(loaded, model, info, problems)
     if problems:
         raise InputError(f"{loaded.path}: {len(problems)} problem(s) relating the mission to its robot", problems)
 
@@ -149,7 +151,7 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
             raise InputError(problems=[Problem(f"wheel name '{rotor.name}' is already used by the URDF", where,
                                                hint="choose another name (or name prefix for arrays)")])
         names_taken.add(rotor.name)
-        add_rotor(model, rotor, where)
+        link_inertias[rotor_link_name(rotor.name)] = model.inertias[add_rotor(model, rotor, where)].copy()
 
     # ---- payloads
     payloads: dict[str, Payload] = {}
@@ -280,6 +282,7 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
     sm.link_parents.update({j.child: j.parent for j in info.joints.values()})
     sm.link_parents.update({rotor_link_name(r.name): r.mount_frame for r, _, _ in rotors})
     sm.link_frames = {name: frame_id(model, name, "link") for name in sm.link_parents}
+    sm.link_inertias = link_inertias
     sm.kinematics_only = placeholders
     for p in mission.payloads:
         if p.attached:
@@ -287,6 +290,38 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
     _check_physical(sm, loaded, info, warnings)
     sm.warnings = list(warnings)
     return sm
+
+
+def _link_inertias(loaded: LoadedMission, model: pin.Model, info: UrdfInfo, problems: list[Problem]) -> dict[str, pin.Inertia]:
+    """Each URDF link's inertia in its link frame: its <inertial> (zero without one) with ``robot.links``
+    applied. Each override is swapped into the model body that carries the link; errors go to ``problems``."""
+    out = {}
+    for name in info.links:
+        if name in info.inertials:
+            m, xyz, rpy, moments = info.inertials[name]
+            out[name] = link_inertia(m, xyz, moments, rpy)
+        else:
+            out[name] = pin.Inertia.Zero()
+    for name, spec in loaded.mission.robot.links.items():
+        where = loaded.source.locate(("robot", "links", name), prefer_key=True)
+        if name not in info.links:
+            close = difflib.get_close_matches(name, list(info.links), n=1)
+            problems.append(Problem(f"no link named '{name}' in the URDF", where, "robot.links",
+                                    f"did you mean '{close[0]}'?" if close else f"URDF links: {', '.join(info.links)}"))
+            continue
+        old = out[name]
+        if spec.mass is None and spec.com is None and spec.inertia is None:
+            continue
+        mass = old.mass if spec.mass is None else spec.mass
+        if mass <= 0.0:
+            problems.append(Problem(f"link '{name}' has no mass in the URDF, so its 'com' and "
+                                    "'inertia' describe no body", where, f"robot.links.{name}", "give its 'mass' too"))
+            continue
+        com = old.lever if spec.com is None else np.asarray(spec.com, float)
+        inertia = old.inertia if spec.inertia is None else inertia_tensor(*spec.inertia)
+        out[name] = spatial_inertia(mass, com, inertia)
+        replace_link_inertia(model, frame_id(model, name, "link"), old, out[name])
+    return out
 
 
 def _joint_axis(model: pin.Model, data: pin.Data, jid: int) -> np.ndarray:
@@ -335,7 +370,7 @@ def _check_physical(sm: SystemModel, loaded: LoadedMission, info: UrdfInfo, warn
             "the participation factors exceed what the rigid inertia allows",
             _where(loaded, "appendages"), hint="check the participation factors (units, ordering) and the appendage link inertia")])
     for i, (spec, a) in enumerate(zip(loaded.mission.appendages, sm.appendages)):
-        M_jj = _link_inertia_at_frame(sm, info, spec.link, a.frame_id)
+        M_jj = _link_inertia_at_frame(sm, loaded, info, spec.link, a.frame_id)
         if M_jj is None:
             warnings.add(f"appendage '{a.name}': link '{spec.link}' has no <inertial>; its modes cannot be checked",
                          _where(loaded, "appendages", i, "link"))
@@ -348,15 +383,12 @@ def _check_physical(sm: SystemModel, loaded: LoadedMission, info: UrdfInfo, warn
                          "check the link inertia, the ordering (TR/RT) and the frame of L")
 
 
-def _link_inertia_at_frame(sm: SystemModel, info: UrdfInfo, link: str, frame_id: int) -> np.ndarray | None:
-    """6×6 spatial inertia ([v; ω] order) of a URDF link's own <inertial>, expressed at a frame."""
-    if link not in info.inertials:
+def _link_inertia_at_frame(sm: SystemModel, loaded: LoadedMission, info: UrdfInfo, link: str, frame_id: int) -> np.ndarray | None:
+    """6×6 spatial inertia ([v; ω] order) of a URDF link's own <inertial> (with ``robot.links``), expressed at a frame;
+    None for a link with neither."""
+    if link not in info.inertials and link not in loaded.mission.robot.links:
         return None
-    mass, xyz, rpy, moments = info.inertials[link]
-    R = euler_zyx_to_matrix(*rpy)
-    I_c = R @ inertia_tensor(*moments) @ R.T
-    Y_link = pin.Inertia(mass, np.asarray(xyz, float), I_c)  # in the link frame
     d = sm.model.createData()
     pin.framesForwardKinematics(sm.model, d, sm.q0)
     link_to_frame = d.oMf[frame_id].actInv(d.oMf[sm.link_frames[link]])
-    return link_to_frame.act(Y_link).matrix()
+    return link_to_frame.act(sm.link_inertias[link]).matrix()

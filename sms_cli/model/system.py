@@ -151,6 +151,21 @@ class SystemModel:
     link_parents: dict[str, str] = field(default_factory=dict)  # URDF link (and wheel rotor) -> parent link; base -> "world"
     link_frames: dict[str, int] = field(default_factory=dict)  # the same links -> their BODY frame id (names may clash with joints)
     kinematics_only: list[str] = field(default_factory=list)  # links given a placeholder inertia (robot.kinematics_only)
+    link_inertias: dict[str, pin.Inertia] = field(default_factory=dict)  # the same links -> own inertia, link frame
+
+    def link_inertial(self, link: str) -> tuple[float, np.ndarray, np.ndarray]:
+        """(mass kg, CoM (3,) m in the link frame, [ixx iyy izz ixy ixz iyz] kg m² about the CoM in the link
+        axes (sms_cli.inertia convention)) of a URDF link or wheel rotor, as this model's bodies hold it: the
+        URDF's <inertial> with ``robot.links`` applied (placeholders of ``kinematics_only`` not included)."""
+        if link not in self.link_inertias:
+            import difflib
+
+            close = difflib.get_close_matches(link, list(self.link_inertias), n=1)
+            raise KeyError(f"no link named '{link}'" + (f"; did you mean '{close[0]}'?" if close else ""))
+        Y = self.link_inertias[link]
+        inertia = Y.inertia
+        return float(Y.mass), Y.lever.copy(), np.array([inertia[0, 0], inertia[1, 1], inertia[2, 2],
+                                                         inertia[0, 1], inertia[0, 2], inertia[1, 2]])
 
     def require_dynamics(self, what: str) -> None:
         """Refuse (exit 2) a stage that needs real inertias on a kinematics-only model."""
