@@ -21,10 +21,19 @@ a mission requirement's (:class:`sms_cli.check.schema.RequirementSpec`).
 
 from __future__ import annotations
 
+import difflib
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 from pydantic import Field, model_validator
 
+from sms_cli.check.metric_units import convert, metric_unit
+from sms_cli.check.requirements import Verdict
 from sms_cli.check.schema import Bound, RequirementSpec
 from sms_cli.mission.base import StrictModel
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 
 class CampaignRequirementSpec(StrictModel):
@@ -102,3 +111,86 @@ class CampaignRequirementSpec(StrictModel):
             errors = getattr(exc, "errors", None)
             raise ValueError("; ".join(e["msg"].removeprefix("Value error, ") for e in errors())
                              if errors else str(exc)) from None
+
+
+# ----------------------------------------------------------------- verdicts
+
+
+def stored_specs(campaign: dict[str, Any]) -> list[CampaignRequirementSpec]:
+    """The campaign requirements campaign.json stores (key ``requirements``; raises ValidationError)."""
+    return [CampaignRequirementSpec.model_validate(s) for s in campaign.get("requirements") or []]
+
+
+def _absent(table: pa.Table, column: str, what: str) -> str:
+    """Why ``column`` is not in the table, with the nearest recorded one ("" when it is there)."""
+    if column in table.column_names:
+        return ""
+    prefix = column.split(".")[0] + "."
+    have = [c[len(prefix):] for c in table.column_names if c.startswith(prefix)]
+    close = difflib.get_close_matches(column[len(prefix):], have, n=1, cutoff=0.6)
+    hint = f"did you mean '{close[0]}'?" if close else f"{len(have)} {what}s recorded"
+    return f"no run recorded the {what} '{column[len(prefix):]}'; {hint}"
+
+
+def evaluate_pass_rate(spec: CampaignRequirementSpec, table: pa.Table) -> Verdict:
+    """Fraction of runs meeting the per-run bound, judged on its Wilson lower bound."""
+    from sms_cli.campaign import stats as S
+    from sms_cli.check.requirements import _bound_text, _bounds
+
+    req = spec.run_requirement()
+    path = req.full_metric()
+    m_unit = metric_unit(path)
+    shown = req.unit or m_unit
+    b = _bounds(req, m_unit, shown)
+    each = f"each run {_bound_text(req, b)}" + (f" {shown}" if shown else "")
+    base = {"name": spec.name, "metric": f"{path} pass rate, Wilson low", "stage": req.section(),
+            "bound": f">= {spec.pass_rate_min:g} ({each})", "unit": ""}
+    why = _absent(table, S.METRIC + path, "metric")
+    if why:
+        return Verdict(status="missing", value=None, message=why, **base)
+    v = S.column(table, S.METRIC + path) * convert(1.0, m_unit, shown)
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(v) & (v >= b.get("min", -np.inf)) & (v <= b.get("max", np.inf))
+    r = S.pass_rate(ok.astype(float), S.statuses(table), spec.confidence)
+    if r["low"] is None:
+        return Verdict(status="missing", value=None, message="no run that ran (all invalid or none finished)", **base)
+    margin = r["low"] - spec.pass_rate_min
+    msg = (f"{r['passed']}/{r['n']} runs that ran meet it ({r['rate']:.1%}); Wilson {spec.confidence:.0%} "
+           f"interval [{r['low']:.4g}, {r['high']:.4g}]; judged on the lower bound")
+    return Verdict(status="pass" if margin >= 0 else "fail", value=r["low"], margin=margin, message=msg, **base)
+
+
+def evaluate_correlation(spec: CampaignRequirementSpec, table: pa.Table) -> Verdict:
+    """Sign of Spearman's ρ(metric, parameter), judged on the bound of its Fisher-z interval."""
+    from sms_cli.campaign import stats as S
+
+    bounds = [f"ρ {op} {b:g}" for op, b in ((">=", spec.rho_min), ("<=", spec.rho_max)) if b is not None]
+    base = {"name": spec.name, "metric": f"ρ({spec.metric}, {spec.correlation_with}), Fisher-z bound",
+            "stage": spec.metric.split(".")[0], "bound": " and ".join(bounds), "unit": ""}
+    why = _absent(table, S.METRIC + spec.metric, "metric") or _absent(table, S.PARAM + spec.correlation_with, "parameter")
+    if why:
+        return Verdict(status="missing", value=None, message=why, **base)
+    ran = np.isin(S.statuses(table), S.RAN)
+    r = S.spearman(S.column(table, S.PARAM + spec.correlation_with)[ran], S.column(table, S.METRIC + spec.metric)[ran],
+                   spec.confidence)
+    if r is None:
+        return Verdict(status="missing", value=None, message="fewer than 4 runs with both values, or one of them "
+                                                             "constant: no rank correlation", **base)
+    judged = []  # (margin, judged interval bound)
+    if spec.rho_max is not None:
+        judged.append((spec.rho_max - r["high"], r["high"]))
+    if spec.rho_min is not None:
+        judged.append((r["low"] - spec.rho_min, r["low"]))
+    margin, value = min(judged)
+    msg = (f"Spearman ρ = {r['rho']:.3f} over {r['n']} runs; Fisher-z {spec.confidence:.0%} interval "
+           f"[{r['low']:.3f}, {r['high']:.3f}]; judged on its bound")
+    return Verdict(status="pass" if margin >= 0 else "fail", value=value, margin=margin, message=msg, **base)
+
+
+def evaluate(spec: CampaignRequirementSpec, table: pa.Table) -> Verdict:
+    """One campaign requirement against the runs of :func:`sms_cli.campaign.stats.read_runs`."""
+    return evaluate_pass_rate(spec, table) if spec.kind == "pass_rate" else evaluate_correlation(spec, table)
+
+
+def evaluate_all(specs: list[CampaignRequirementSpec], table: pa.Table) -> list[Verdict]:
+    return [evaluate(s, table) for s in specs]

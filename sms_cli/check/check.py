@@ -142,7 +142,13 @@ def _junit_of_failure(junit: Path, suite: str, exc: Exception) -> None:
 
 def _check(results_dir: Path, mission: Path | None, baseline: Path | None, junit: Path | None,
            write_baseline: Path | None) -> CheckOutcome:
+    from sms_cli.check.campaign import check_campaign, is_campaign
+
+    if is_campaign(results_dir):
+        return check_campaign(results_dir, mission, baseline, junit, write_baseline)
     results, results_file = read_results(results_dir)
+    if isinstance(results.get("campaign"), dict):  # campaign.json is missing: check_campaign says so
+        return check_campaign(results_dir, mission, baseline, junit, write_baseline)
     name = str(section(results, "run").get("mission") or section(results, "compile").get("name") or Path(results_dir).name)
     outcome = CheckOutcome(name, results=str(results_dir))
     state = section(results, "run").get("state")

@@ -16,7 +16,7 @@ from typing import Any, Callable, TypeVar
 from sms_cli.check.metrics import damaged_sections, section
 from sms_cli.errors import InputError, Location, Problem, SmsError
 from sms_cli.report.model import Figure, Section
-from sms_cli.results import write_text_atomic
+from sms_cli.results import RESULTS_FILE, write_text_atomic
 
 T = TypeVar("T")
 
@@ -122,7 +122,10 @@ def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | N
     if folder.is_file():
         raise InputError(problems=[Problem("is a file; sms report takes the results folder (the one holding results.json)",
                                            Location(folder), hint=f"sms report {folder.parent}")])
-    results, raw, _ = load_results(folder)
+    from sms_cli.check.campaign import is_campaign
+
+    campaign = is_campaign(folder)  # a campaign stopped before its summary has no results.json yet
+    results, raw = ({}, b"") if campaign and not (folder / RESULTS_FILE).exists() else load_results(folder)[:2]
     problems = list(damaged_sections(results).values())
 
     def attempt(name: str, build: Callable[[], T]) -> T | None:
@@ -167,6 +170,13 @@ def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | N
         if sec is not None:
             sec.notes.extend(notes)
         sections.append(sec)
+    if campaign or isinstance(results.get("campaign"), dict):
+        from sms_cli.report.campaign import campaign_report_section, statistics
+
+        stats = attempt("campaign", lambda: statistics(folder, results))
+        if stats is not None:
+            verdicts += [v for v in _dicts(stats.get("requirements")) if isinstance(v.get("status"), str)]
+            sections.append(attempt("campaign", lambda: campaign_report_section(folder, stats)))
     front: list[Section | None] = []
     if verdicts:
         front.append(attempt("requirements", lambda: S.requirements_section(verdicts)))
