@@ -112,7 +112,7 @@ def execute_run(task: RunTask) -> RunOutcome:
         return RunOutcome(status="invalid", exit_status=EXIT_INPUT, message=_one_line(exc),
                           wall_s=time.perf_counter() - t0, **base)
     params = read_back(loaded, sm, task)
-    results, status, message = _stages(loaded, task.stages)
+    results, status, message = _stages(loaded, task.stages, task.gains_yaml)
     metrics: dict[str, float] = {}
     for key, section in results.items():
         flatten(section, key, metrics)
@@ -133,12 +133,15 @@ def _build(task: RunTask):
     return loaded, api.compile(loaded)
 
 
-def _stages(loaded, stages: tuple[str, ...]) -> tuple[dict[str, Any], str, str]:
-    """results.json sections of the stages, the run's status and why it stopped early."""
+def _stages(loaded, stages: tuple[str, ...], gains_yaml: str | None = None) -> tuple[dict[str, Any], str, str]:
+    """results.json sections of the stages, the run's status and why it stopped early. The simulation
+    reads the gains its own synthesize stage wrote, else ``gains_yaml`` (the nominal mission's)."""
     import sms_cli.api as api
 
     results: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="sms-campaign-") as gains_dir:
+        if gains_yaml is not None:
+            Path(gains_dir, "gains.yaml").write_text(gains_yaml, encoding="utf-8")
         for stage in stages:
             try:
                 if stage == "analyze":
@@ -147,7 +150,7 @@ def _stages(loaded, stages: tuple[str, ...]) -> tuple[dict[str, Any], str, str]:
                     done = api.synthesize(loaded, out=gains_dir, plots=False)
                     results["synthesis"] = done.section
                 else:
-                    gains = gains_dir if "synthesize" in stages else None
+                    gains = gains_dir if "synthesize" in stages or gains_yaml is not None else None
                     results["simulate"] = api.simulate(loaded, gains_dir=gains).section
             except NumericalError as exc:
                 partial = getattr(exc, "result", None)
@@ -177,6 +180,11 @@ def record_run(task: RunTask, out: Path) -> dict[str, Any]:
 
     loaded, _ = _build(task)
     results: dict[str, Any] = {}
+    out.mkdir(parents=True, exist_ok=True)
+    if task.gains_yaml is not None and "synthesize" not in task.stages:
+        from sms_cli.results import write_text_atomic
+
+        write_text_atomic(out / "gains.yaml", task.gains_yaml)
     for stage in task.stages:
         try:
             if stage == "analyze":

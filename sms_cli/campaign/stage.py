@@ -33,6 +33,7 @@ class Campaign:
     tree: dict[str, Any]
     parameters: list[Parameter]
     entropy: int
+    gains_yaml: str | None = None
 
     @property
     def runs(self) -> int:
@@ -55,7 +56,7 @@ class Campaign:
         s = self.samples(runs)
         return [RunTask(run=r, tree=self.tree, base_dir=str(self.loaded.path.parent), name=self.loaded.path.name,
                         stages=self.spec.ordered_stages, samples=s[r], attempt=attempts.get(r, 0) + 1,
-                        timeout_s=float(self.spec.timeout)) for r in runs]
+                        timeout_s=float(self.spec.timeout), gains_yaml=self.gains_yaml) for r in runs]
 
     def seed_of(self, run: int) -> dict[str, Any]:
         return {"entropy": str(self.entropy), "run": run}
@@ -83,14 +84,12 @@ def _declared(p: Parameter) -> dict[str, Any]:
 def define(loaded: LoadedMission, entropy: int | None = None) -> Campaign:
     """Resolve the mission's ``campaign:`` section; InputError naming the file and line of a path that
     does not exist (with a did-you-mean) or a mission without one."""
-    from sms_cli.mission.load import _load_tree
-
     spec = loaded.mission.campaign
     if spec is None:
         raise InputError(problems=[Problem("this mission has no campaign: section", loaded.source.locate(()),
                                            hint="add one (see `sms schema` or missions/campaign_*.yaml), "
                                                 "usually in a file that extends this mission")])
-    tree, _ = _load_tree(loaded.path)
+    tree = _tree_of(loaded)
     if loaded.mission.robot is not None:  # the URDF as the file that named it meant it (an extended file's folder)
         tree["robot"] = {**tree["robot"], "urdf": str(loaded.resolve(loaded.mission.robot.urdf, ("robot", "urdf")))}
     sm = _nominal_model(loaded)
@@ -106,6 +105,17 @@ def define(loaded: LoadedMission, entropy: int | None = None) -> Campaign:
                                                f"campaign.dispersions.{i}.path", hint=hint)]) from None
     seed = spec.entropy if spec.entropy is not None else entropy if entropy is not None else new_entropy()
     return Campaign(loaded, spec, tree, params, int(seed))
+
+
+def _tree_of(loaded: LoadedMission) -> dict[str, Any]:
+    """The mission's data with its ``extends`` chain applied (a file, or text given to the API)."""
+    from sms_cli.mission.load import _extend, _load_tree
+    from sms_cli.mission.yaml_source import load_yaml_text
+
+    if loaded.path.is_file() and loaded.path.read_text(encoding="utf-8") == loaded.text:
+        return _load_tree(loaded.path)[0]
+    data, smap = load_yaml_text(loaded.text, loaded.path)
+    return _extend(loaded.path, data, smap)[0]
 
 
 def _nominal_model(loaded: LoadedMission):
@@ -154,11 +164,33 @@ def run(campaign: Campaign, folder: Path, *, scheduler: str | None = None, worke
             todo = [r for r in range(campaign.runs) if r not in done]
             if plan == "resume":
                 print(f"  resuming: {len(done)} of {campaign.runs} runs finished, {len(todo)} to run", file=sys.stderr)
+            nominal_gains(campaign, folder)
             with store:
                 execute(pool, campaign.tasks(todo, attempts_so_far(folder)), execute_run,
                         timeout_s=float(campaign.spec.timeout), retries=campaign.spec.retries,
                         on_outcome=store.record, progress=progress)
     return summarize(campaign, folder)
+
+
+def needs_nominal_gains(campaign: Campaign) -> bool:
+    """Whether the runs simulate with synthesized gains they do not synthesize themselves."""
+    m = campaign.loaded.mission
+    return (m.synthesis is not None and m.simulation is not None and "simulate" in campaign.spec.stages
+            and "synthesize" not in campaign.spec.stages)
+
+
+def nominal_gains(campaign: Campaign, folder: Path) -> None:
+    """Synthesize the gains once on the nominal mission into ``folder/nominal/`` (kept on resume):
+    every run's controller is then the one designed for the nominal plant."""
+    if not needs_nominal_gains(campaign):
+        return
+    import sms_cli.api as api
+
+    target = folder / "nominal"
+    if not (target / "gains.yaml").exists():
+        print("  synthesizing the gains on the nominal mission (every run uses them)", file=sys.stderr)
+        api.synthesize(campaign.loaded, out=target, plots=False)
+    campaign.gains_yaml = (target / "gains.yaml").read_text(encoding="utf-8")
 
 
 def summarize(campaign: Campaign, folder: Path) -> dict[str, Any]:

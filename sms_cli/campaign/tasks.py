@@ -23,7 +23,8 @@ class RunTask:
 
     ``samples`` maps each dispersion name to its dotted path and the SI value to write there;
     ``base_dir`` is where the mission's relative paths (its URDF) resolve; ``stages`` the stages
-    to execute in order (``simulate``, ``analyze``, ``synthesize``)."""
+    to execute in order (``simulate``, ``analyze``, ``synthesize``); ``gains_yaml`` the gains.yaml
+    text a simulation without its own ``synthesize`` stage reads (the nominal mission's gains)."""
 
     run: int
     tree: dict[str, Any]
@@ -33,6 +34,7 @@ class RunTask:
     samples: dict[str, tuple[str, Any]]
     attempt: int = 1
     timeout_s: float | None = None
+    gains_yaml: str | None = None
 
 
 @dataclass
