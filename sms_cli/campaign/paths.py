@@ -19,9 +19,16 @@ from pydantic import BaseModel
 class PathError(ValueError):
     """A path that does not lead to a number: the message, and what could have been meant."""
 
-    def __init__(self, message: str, suggestions: list[str] | None = None):
+    def __init__(self, message: str, suggestions: list[str] | None = None, at: int | None = None):
         super().__init__(message)
         self.suggestions = suggestions or []
+        self.at = at  # index of the part that is wrong
+
+    def corrected(self, path: str) -> list[str]:
+        """``path`` with the wrong part replaced by each suggestion."""
+        parts = split(path)
+        k = len(parts) - 1 if self.at is None else self.at
+        return [".".join(parts[:k] + [s] + parts[k + 1:]) for s in self.suggestions]
 
 
 def split(path: str) -> list[str]:
@@ -82,7 +89,11 @@ def nominal(mission: BaseModel, path: str, sm=None) -> float | np.ndarray:
         return link_value(sm, parts[2], parts[3])
     obj: Any = mission
     for k, part in enumerate(parts):
-        obj = _child(obj, part, ".".join(parts[:k]))
+        try:
+            obj = _child(obj, part, ".".join(parts[:k]))
+        except PathError as exc:
+            exc.at = k
+            raise
     return _numeric(obj, path)
 
 
@@ -92,10 +103,10 @@ LINK_FIELDS = ("mass", "com", "inertia")
 def link_value(sm, link: str, field: str) -> float | np.ndarray:
     """A link's mass (kg), CoM (m, link frame) or six-number inertia (kg m², about the CoM) in the built model."""
     if field not in LINK_FIELDS:
-        raise PathError(f"robot.links.{link} has no field {field!r}", _did_you_mean(field, list(LINK_FIELDS)))
+        raise PathError(f"robot.links.{link} has no field {field!r}", _did_you_mean(field, list(LINK_FIELDS)), 3)
     names = list(sm.link_frames)
     if link not in names:
-        raise PathError(f"the robot has no link {link!r}", _did_you_mean(link, names))
+        raise PathError(f"the robot has no link {link!r}", _did_you_mean(link, names), 2)
     mass, com, inertia = sm.link_inertial(link)
     return {"mass": float(mass), "com": np.asarray(com, float), "inertia": np.asarray(inertia, float)}[field]
 

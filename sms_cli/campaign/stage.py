@@ -98,8 +98,9 @@ def define(loaded: LoadedMission, entropy: int | None = None) -> Campaign:
         try:
             params.append(Parameter(d, paths.nominal(loaded.mission, d.path, sm)))
         except paths.PathError as exc:
-            hint = f"did you mean {'.'.join(paths.split(d.path)[:-1] + [exc.suggestions[0]]) if len(exc.suggestions) == 1 else ' or '.join(exc.suggestions)}?" \
-                if exc.suggestions else "write a dotted path to a number of the mission (see the campaign schema)"
+            fixes = exc.corrected(d.path)
+            hint = (f"did you mean {' or '.join(fixes)}?" if fixes
+                    else "write a dotted path to a number of the mission (see the campaign schema)")
             raise InputError(problems=[Problem(f"dispersion {d.key!r}: {exc}",
                                                loaded.source.locate(("campaign", "dispersions", i, "path")),
                                                f"campaign.dispersions.{i}.path", hint=hint)]) from None
