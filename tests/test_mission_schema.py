@@ -147,6 +147,8 @@ CATALOGUE = [
     ("negative frequency with a unit", MODE + ("frequency",), "-0.16 Hz", "0.16 Hz"),
     ("negative frequency", ("simulation", "control_rate"), -10, 10),
     ("negative recording rate", ("simulation", "record_rate"), "-10 Hz", "10 Hz"),
+    ("negative wheel torque limit", ("wheels", "joints", 0, "max_torque"), "-0.2 N m", "0.2 N m"),
+    ("zero wheel speed limit", ("wheels", "joints", 0, "max_speed"), 0, "100 Hz"),
     ("zero time step", ("simulation", "dt"), "0 s", "10 ms"),
     ("negative optional inertia", ("wheels", "declared"), [{**_WHEEL, "transverse_inertia": "-0.01 kg m^2"}],
      [{**_WHEEL, "transverse_inertia": "0.01 kg m^2"}]),

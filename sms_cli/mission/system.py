@@ -81,8 +81,8 @@ class RobotSpec(StrictModel):
 class WheelLimits(StrictModel):
     """Actuator limits and initial speed of a reaction wheel."""
 
-    max_torque: Torque = Field(description="motor torque limit (N m)")
-    max_speed: AngularRate = Field(description="wheel speed limit relative to the base (rad/s)")
+    max_torque: Torque = Field(gt=0, description="motor torque limit (N m), > 0")
+    max_speed: AngularRate = Field(gt=0, description="wheel speed limit relative to the base (rad/s), > 0")
     initial_speed: AngularRate = Field(0.0, description="wheel speed at t=0 relative to the base (rad/s)")
 
 
