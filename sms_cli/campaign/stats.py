@@ -189,23 +189,11 @@ def metric_stats(values: np.ndarray, runs: np.ndarray) -> dict[str, Any]:
     return out
 
 
-def varying_params(table: pa.Table) -> list[str]:
-    """The dispersed parameters that take more than one value over the runs that ran."""
-    ran = np.isin(statuses(table), RAN)
-    out = []
-    for p in names(table, PARAM):
-        v = column(table, PARAM + p)[ran]
-        v = v[np.isfinite(v)]
-        if len(v) and np.ptp(v) > 0:
-            out.append(p)
-    return out
-
-
 def sensitivities(table: pa.Table, confidence: float = CONFIDENCE) -> list[dict[str, Any]]:
-    """Spearman ρ of every metric against every varying parameter over the runs that ran, strongest
-    |ρ| first. Keys: metric, parameter, rho, low, high, n, p_value, confidence."""
+    """Spearman ρ of every metric against every parameter that varies, over the runs that ran,
+    strongest |ρ| first. Keys: metric, parameter, rho, low, high, n, p_value, confidence."""
     ran = np.isin(statuses(table), RAN)
-    params = {p: column(table, PARAM + p)[ran] for p in varying_params(table)}
+    params = {p: column(table, PARAM + p)[ran] for p in names(table, PARAM)}
     out = []
     for m in names(table, METRIC):
         y = column(table, METRIC + m)[ran]
