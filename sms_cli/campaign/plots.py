@@ -69,7 +69,8 @@ def _hist_caption(metric: str, st: dict[str, Any], specs: list) -> str:
     bound = any(s.metric == metric and s.kind == "pass_rate" for s in specs)
     return (f"{metric}: distribution over the {st['n']} runs that ran (diverged runs stacked in red)"
             + (", with the per-run bound of its campaign requirement (dotted)" if bound else "")
-            + f"; extremes in runs {st['min']['run']} and {st['max']['run']}: how far the spread stays from the bound.")
+            + f"; extremes in runs {st['min']['run']} and {st['max']['run']}"
+            + (": how far the spread stays from the bound." if bound else ": the spread the dispersions cause."))
 
 
 def _scatter_caption(s: dict[str, Any]) -> str:
