@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 from statistics import NormalDist
 
@@ -281,13 +280,9 @@ def test_figures_of_the_requirement_metrics_and_the_strongest_pairs(tmp_path):
             {"name": "sign", "metric": SETTLE, "correlation_with": "body_mass", "rho_max": 0}]
     folder = mass_campaign(tmp_path, requirements=reqs)
     section = S.campaign_section(folder)
-    write_plots(folder, section)  # imports and first draws
-    t0 = time.perf_counter()
     names = write_plots(folder, section)
-    per_figure = (time.perf_counter() - t0) / len(names)
     assert f"plots/hist--{SETTLE}.png" in names and f"plots/scatter--{SETTLE}--body_mass.png" in names
     assert "plots/hist--simulate.overall.attitude_error_deg.final.png" in names
-    assert per_figure < 1.0  # s, shared CPU included
     for n in names:
         info = png_info((folder / n).read_bytes())
         assert info["width"] == HALF_PX and float(info["text"]["sms:text-overlaps"]) == 0
