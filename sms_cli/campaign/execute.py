@@ -279,11 +279,29 @@ def _first_line(exc: BaseException) -> str:
     return text[0] if text else ""
 
 
-def _is_lost(exc: BaseException) -> bool:
-    """Whether a future's error means its worker or the connection was lost (not the run's fault)."""
+def _error_of(future, result) -> BaseException:
+    """The exception behind a future that did not bring a RunOutcome (``as_completed`` with
+    ``raise_errors=False`` gives an erred future's (type, exception, traceback))."""
+    if isinstance(result, tuple) and len(result) == 3 and isinstance(result[1], BaseException):
+        return result[1]
+    if isinstance(result, BaseException):
+        return result
+    if future.status == "finished":
+        return TypeError(f"the run returned a {type(result).__name__}, not a RunOutcome")
+    return concurrent.futures.CancelledError()
+
+
+def _lost_reason(exc: BaseException) -> str:
+    """Why a future's error means its worker or the connection was lost, in words ('' when it does not)."""
     from distributed import KilledWorker
 
-    return isinstance(exc, (KilledWorker, OSError, concurrent.futures.CancelledError))
+    if isinstance(exc, KilledWorker):
+        return "the worker running it died, and Dask gave up on the run"
+    if isinstance(exc, concurrent.futures.CancelledError):
+        return "Dask dropped the run (its scheduler or worker went away)"
+    if isinstance(exc, OSError):
+        return f"the connection to its worker was lost ({exc.strerror or _first_line(exc) or 'closed'})"
+    return ""
 
 
 class _Execution:
@@ -303,7 +321,7 @@ class _Execution:
         self.first_attempt: dict[int, int] = {}
         self.summary = ExecutionSummary(total=progress.total)
         self.done = 0
-        self.queue = as_completed(loop=self.client.loop)
+        self.queue = as_completed(loop=self.client.loop, with_results=True, raise_errors=False)
 
     def _prepared(self, task: RunTask) -> RunTask:
         return task if self.timeout_s is None else replace(task, timeout_s=self.timeout_s)
@@ -323,18 +341,17 @@ class _Execution:
         self.in_flight[future] = task
         self.queue.add(future)
 
-    def collect(self, future) -> tuple[RunTask, RunOutcome]:
-        """The outcome a finished future holds, or the lost/failed attempt its error means."""
+    def collect(self, future, result) -> tuple[RunTask, RunOutcome]:
+        """The outcome a finished future brought, or the lost/failed attempt its error means.
+        (``as_completed`` fetched ``result`` in its own thread: nothing here waits on the network.)"""
         task = self.in_flight.pop(future)
-        try:
-            return task, future.result()
-        except Exception as exc:  # noqa: BLE001 - every error of a future is one attempt of its run
-            if _is_lost(exc):
-                status, message = "lost", f"the worker was lost: {_first_line(exc) or 'its run was cancelled'}"
-            else:
-                status, message = "failed", f"{type(exc).__name__}: {_first_line(exc)}"
-            return task, RunOutcome(run=task.run, status=status, exit_status=EXIT_INTERNAL, message=message,
-                                    attempt=task.attempt)
+        if future.status == "finished" and isinstance(result, RunOutcome):
+            return task, result
+        exc = _error_of(future, result)
+        lost = _lost_reason(exc)
+        status, message = ("lost", lost) if lost else ("failed", f"{type(exc).__name__}: {_first_line(exc)}")
+        return task, RunOutcome(run=task.run, status=status, exit_status=EXIT_INTERNAL, message=message,
+                                attempt=task.attempt)
 
     def retry_allowed(self, task: RunTask) -> bool:
         return task.attempt - self.first_attempt[task.run] < self.retries
@@ -356,9 +373,9 @@ class _Execution:
         self.progress.update(self.done, summary.failures)
 
     def run(self) -> None:
-        for future in self.queue:
+        for future, result in self.queue:
             with _signals_deferred():
-                self.deliver(*self.collect(future))
+                self.deliver(*self.collect(future, result))
 
     def cancel_outstanding(self) -> int:
         futures = list(self.in_flight)

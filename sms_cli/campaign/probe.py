@@ -6,7 +6,9 @@
     seconds:       CPU time to spin (busy work, not a sleep), default 0
     crash:         true → the process dies of SIGSEGV; "exit" → ``os._exit(139)``
     hang:          true → never returns (sleeps forever)
+    kill_worker:   true → SIGKILL to the parent process (the Dask worker hosting the sandbox)
     raise:         true → raises RuntimeError
+    pid_file:      a path → the process id of the attempt is appended to it (one line)
     fail_attempts: N → the faults above apply only while ``task.attempt <= N``; with no fault
                    named, those attempts return status ``failed``
 
@@ -46,6 +48,9 @@ def _fault(probe: dict[str, Any], task: RunTask) -> RunOutcome | None:
         os._exit(139)
     if crash:
         os.kill(os.getpid(), signal.SIGSEGV)
+    if probe.get("kill_worker"):
+        os.kill(os.getppid(), signal.SIGKILL)
+        time.sleep(60)  # the sandbox child ends once it sees its parent gone
     if probe.get("hang"):
         while True:
             time.sleep(0.05)
@@ -66,6 +71,9 @@ def probe_metrics(task: RunTask) -> dict[str, float]:
 def probe_run(task: RunTask) -> RunOutcome:
     """A synthetic run: spin, commit the planned fault if any, else report the probe metrics (ok)."""
     probe = dict(task.tree.get("probe") or {})
+    if probe.get("pid_file"):
+        with open(probe["pid_file"], "a") as pids:
+            pids.write(f"{os.getpid()}\n")
     spin(float(probe.get("seconds", 0.0)))
     failed = _fault(probe, task)
     if failed is not None:

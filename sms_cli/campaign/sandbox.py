@@ -2,7 +2,8 @@
 
 Each thread that runs attempts (one per Dask worker process with ``--nthreads 1``) keeps one
 child process, started with multiprocessing's ``spawn`` context and reused across attempts, so
-the mission code and its numba kernels load once. The parent sends ``(run_fn, task)`` down a
+the mission code and its numba kernels load once (a fresh child imports the run function's
+module before the first attempt's clock starts). The parent sends ``(run_fn, task)`` down a
 pipe and waits at most ``task.timeout_s``:
 
 - the child answers with the run function's RunOutcome → that outcome;
@@ -38,6 +39,8 @@ RunFn = Callable[[RunTask], RunOutcome]
 
 #: How long a killed or finished child may take to be reaped before it is given up on.
 REAP_TIMEOUT_S = 5.0
+#: How long a fresh child may take to import the run function (not counted in any attempt's timeout).
+LOAD_TIMEOUT_S = 300.0
 #: How often the child checks that its parent is still alive.
 PARENT_CHECK_S = 0.5
 
@@ -62,14 +65,22 @@ def _exit_when_orphaned(parent_pid: int) -> None:
 
 
 def _child_main(conn, parent_pid: int) -> None:
-    """The child's loop: run each ``(run_fn, task)`` it is sent, answer with the outcome or the error."""
+    """The child's loop: answer ``("load", run_fn)`` once the function's module is imported, and
+    ``("run", (run_fn, task))`` with the run's outcome or its error."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_exit_when_orphaned, args=(parent_pid,), daemon=True).start()
     while True:
         try:
-            run_fn, task = conn.recv()
+            kind, payload = conn.recv()
         except (EOFError, OSError):  # the parent closed the pipe
             return
+        except Exception as exc:  # noqa: BLE001 - the run function's module does not import here
+            conn.send(("error", (f"the run function cannot be loaded: {_one_line(exc)}", traceback.format_exc())))
+            continue
+        if kind == "load":
+            conn.send(("loaded", None))
+            continue
+        run_fn, task = payload
         try:
             reply: tuple[str, Any] = ("outcome", run_fn(task))
         except Exception as exc:  # noqa: BLE001 - any error of the run function is one failed attempt
@@ -123,18 +134,41 @@ class Sandbox:
     def _alive(self) -> bool:
         return self._process is not None and self._process.is_alive()
 
+    def _exchange(self, message: tuple[str, Any], timeout: float | None) -> tuple[bool, tuple | None]:
+        """Send a message, wait for the reply: (answered in time, the reply or None if the child died)."""
+        try:
+            self._conn.send(message)
+            if not self._conn.poll(timeout):
+                return False, None
+            return True, self._conn.recv()
+        except (EOFError, OSError):  # the pipe broke: the child died
+            return True, None
+
+    def _load(self, task: RunTask, run_fn: RunFn) -> RunOutcome | None:
+        """Start a child and import the run function in it, outside any attempt's timeout
+        (None: ready; else the attempt this cost)."""
+        self.close()
+        self._start()
+        started = time.perf_counter()
+        answered, reply = self._exchange(("load", run_fn), LOAD_TIMEOUT_S)
+        wall = time.perf_counter() - started
+        if not answered:
+            self.close()
+            return self._fault(task, "timeout", f"the run function did not load within {LOAD_TIMEOUT_S:g} s", wall)
+        if reply is None:
+            return self._fault(task, "crashed", self._death_note(), wall)
+        if reply[0] == "error":
+            return self._outcome(task, reply, wall)
+        return None
+
     def run(self, task: RunTask, run_fn: RunFn) -> RunOutcome:
         """One attempt of ``task`` through ``run_fn`` in the child; never raises for the run's faults."""
         if not self._alive():
-            self.close()
-            self._start()
+            failed = self._load(task, run_fn)
+            if failed is not None:
+                return failed
         started = time.perf_counter()
-        try:
-            self._conn.send((run_fn, task))
-            answered = self._conn.poll(task.timeout_s)
-            reply = self._conn.recv() if answered else None
-        except (EOFError, OSError):  # the pipe broke: the child died
-            answered, reply = True, None
+        answered, reply = self._exchange(("run", (run_fn, task)), task.timeout_s)
         wall = time.perf_counter() - started
         if not answered:
             self.close()
