@@ -22,8 +22,8 @@ from pathlib import Path
 
 import psutil
 import pytest
-
 from conftest import EXCEPTION_TEXT, ROOT
+
 from sms_cli.campaign.execute import CampaignInterrupted, connect, execute
 from sms_cli.campaign.probe import probe_run, probe_task
 from sms_cli.campaign.sandbox import Sandbox
@@ -116,6 +116,14 @@ def wait_for(condition, timeout: float, what: str):
     raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
+def process_ended(pid: int) -> bool:
+    """Whether ``pid`` is gone (or a zombie waiting for its parent)."""
+    try:
+        return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return True
+
+
 def closed_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -140,8 +148,9 @@ class DaskProcesses:
 
     def add_worker(self, name: str) -> subprocess.Popen:
         """One worker process (no nanny: killing it kills the worker) with one thread."""
-        proc = start_group([DASK, "worker", self.address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
-                            "--host", "127.0.0.1", "--name", name, "--death-timeout", "10"], self.folder / f"{name}.log")
+        args = [DASK, "worker", self.address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                "--host", "127.0.0.1", "--name", name, "--death-timeout", "10"]
+        proc = start_group(args, self.folder / f"{name}.log")
         self.procs.append(proc)
         return proc
 
@@ -195,7 +204,7 @@ def test_sandbox_reuses_its_child_and_replaces_a_dead_one():
 
         crashed = box.run(probe_task(2, crash=True), probe_run)
         assert (crashed.status, crashed.exit_status) == ("crashed", 4) and "SIGSEGV" in crashed.message
-        assert not psutil.pid_exists(child) or psutil.Process(child).status() == psutil.STATUS_ZOMBIE
+        assert process_ended(child)
         exited = box.run(probe_task(3, crash="exit"), probe_run)
         assert exited.status == "crashed" and "139" in exited.message
         after = box.run(probe_task(4), probe_run)
@@ -245,7 +254,7 @@ def test_killing_a_worker_mid_campaign_still_finishes_every_run_once(dask_proces
     assert finished_once(outcomes, range(12))
     assert len([o for o in outcomes if o.worker == victim_name]) == 1
     assert sandboxes, "the victim ran its runs in a sandbox child"
-    gone, alive = psutil.wait_procs(sandboxes, timeout=5)
+    _, alive = psutil.wait_procs(sandboxes, timeout=5)
     assert not alive, "a sandbox child outlived its worker"
 
 
@@ -295,12 +304,11 @@ def test_a_run_that_dask_gives_up_on_is_a_lost_attempt_and_resubmitted(tmp_path)
 
     pid_file = tmp_path / "pids"
     killer = probe_task(0, kill_worker=True, fail_attempts=1, pid_file=str(pid_file))
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):  # the first death: KilledWorker
-        with connect(None, 1) as pool:
-            outcomes, summary = campaign(pool, [killer, probe_task(1), probe_task(2)], retries=1)
-            orphan = int(pid_file.read_text().split()[0])  # the sandbox child whose worker died
-            wait_for(lambda: not psutil.pid_exists(orphan) or psutil.Process(orphan).status() == psutil.STATUS_ZOMBIE,
-                     3, "the orphaned sandbox child to end")
+    # allowed-failures 0: the first death of a worker running the run is a KilledWorker
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), connect(None, 1) as pool:
+        outcomes, summary = campaign(pool, [killer, probe_task(1), probe_task(2)], retries=1)
+        orphan = int(pid_file.read_text().split()[0])  # the sandbox child whose worker died
+        wait_for(lambda: process_ended(orphan), 3, "the orphaned sandbox child to end")
     runs = attempts_by_run(outcomes)
     assert runs[0] == [(1, "lost"), (2, "ok")]
     assert finished_once(outcomes, range(3)) and summary.gave_up == []
@@ -355,8 +363,7 @@ def test_closing_a_local_pool_stops_its_workers():
     started = time.monotonic()
     pool.close()
     assert time.monotonic() - started < 15
-    wait_for(lambda: not any(psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE
-                             for p in pids.values()), 10, "the local workers to stop")
+    wait_for(lambda: all(process_ended(p) for p in pids.values()), 10, "the local workers to stop")
 
 
 # ---------------------------------------------------------------------------------- Ctrl-C

@@ -25,8 +25,9 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from typing import Callable, Iterable
+from typing import Self
 
 from sms_cli.campaign.sandbox import RunFn, run_in_sandbox
 from sms_cli.campaign.tasks import FINISHED, RETRIED, RunOutcome, RunTask
@@ -78,7 +79,7 @@ class Pool:
             except Exception as exc:  # noqa: BLE001 - closing must not hide the campaign's own outcome
                 log.debug("closing %s: %s", type(closable).__name__, exc)
 
-    def __enter__(self) -> Pool:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -164,7 +165,7 @@ def _check_scheduler(address: str) -> None:
 
     try:
         identity = asyncio.run(asyncio.wait_for(_identity(address), CONNECT_TIMEOUT_S))
-    except (OSError, TimeoutError, asyncio.TimeoutError, ValueError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:
         raise _unreachable(address, _reason(exc)) from None
     if not isinstance(identity, dict) or identity.get("type") != "Scheduler":
         raise _unreachable(address, "the server there is not a Dask scheduler")
@@ -191,7 +192,7 @@ def _unreachable(address: str, reason: str) -> InputError:
 
 
 def _clock(seconds: float) -> str:
-    seconds = int(round(seconds))
+    seconds = round(seconds)
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 

@@ -27,8 +27,9 @@ import socket
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import replace
-from typing import Any, Callable
+from typing import Any
 
 from sms_cli.campaign.tasks import RunOutcome, RunTask
 from sms_cli.errors import EXIT_INTERNAL
@@ -91,22 +92,26 @@ def _child_main(conn, parent_pid: int) -> None:
             conn.send(("error", (f"the run's outcome cannot be sent back: {_one_line(exc)}", traceback.format_exc())))
 
 
+_DAEMON_FLAG = threading.Lock()
+
+
 @contextlib.contextmanager
 def _children_allowed():
     """Let a daemonic process start the sandbox child.
 
     Dask's nanny starts worker processes as daemons, and multiprocessing refuses children of a
     daemon. The sandbox child is itself a daemon and watches its parent, so it never outlives
-    the worker; the worker's flag is restored at once."""
+    the worker; the worker's flag is restored at once (under a lock: a worker may have threads)."""
     me = multiprocessing.current_process()
-    was_daemon = me.daemon
-    if was_daemon:
-        me.daemon = False
-    try:
-        yield
-    finally:
+    with _DAEMON_FLAG:
+        was_daemon = me.daemon
         if was_daemon:
-            me.daemon = True
+            me.daemon = False
+        try:
+            yield
+        finally:
+            if was_daemon:
+                me.daemon = True
 
 
 class Sandbox:
@@ -184,7 +189,8 @@ class Sandbox:
             log.debug("run %d attempt %d raised:\n%s", task.run, task.attempt, trace)
             return self._fault(task, "failed", message, wall)
         if not isinstance(payload, RunOutcome):
-            return self._fault(task, "failed", f"the run function returned a {type(payload).__name__}, not a RunOutcome", wall)
+            returned = type(payload).__name__
+            return self._fault(task, "failed", f"the run function returned a {returned}, not a RunOutcome", wall)
         return replace(payload, run=task.run, attempt=task.attempt, wall_s=wall, worker=worker_name())
 
     def _fault(self, task: RunTask, status: str, message: str, wall: float) -> RunOutcome:
