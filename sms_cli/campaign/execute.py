@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 from typing import Self
 
 from sms_cli.campaign.sandbox import RunFn, run_in_sandbox
-from sms_cli.campaign.tasks import FINISHED, RETRIED, RunOutcome, RunTask
+from sms_cli.campaign.tasks import FINISHED, RETRIED, RunOutcome, RunTask, one_line
 from sms_cli.errors import EXIT_INTERNAL, InputError, Problem
 
 log = logging.getLogger(__name__)
@@ -275,11 +275,6 @@ def _signals_deferred():
         raise KeyboardInterrupt
 
 
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else ""
-
-
 def _error_of(future, result) -> BaseException:
     """The exception behind a future that did not bring a RunOutcome (``as_completed`` with
     ``raise_errors=False`` gives an erred future's (type, exception, traceback))."""
@@ -301,7 +296,7 @@ def _lost_reason(exc: BaseException) -> str:
     if isinstance(exc, concurrent.futures.CancelledError):
         return "Dask dropped the run (its scheduler or worker went away)"
     if isinstance(exc, OSError):
-        return f"the connection to its worker was lost ({exc.strerror or _first_line(exc) or 'closed'})"
+        return f"the connection to its worker was lost ({exc.strerror or one_line(exc) or 'closed'})"
     return ""
 
 
@@ -350,7 +345,7 @@ class _Execution:
             return task, result
         exc = _error_of(future, result)
         lost = _lost_reason(exc)
-        status, message = ("lost", lost) if lost else ("failed", f"{type(exc).__name__}: {_first_line(exc)}")
+        status, message = ("lost", lost) if lost else ("failed", f"{type(exc).__name__}: {one_line(exc)}")
         return task, RunOutcome(run=task.run, status=status, exit_status=EXIT_INTERNAL, message=message,
                                 attempt=task.attempt)
 

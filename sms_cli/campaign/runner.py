@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from sms_cli.campaign import paths
-from sms_cli.campaign.tasks import RunOutcome, RunTask
+from sms_cli.campaign.tasks import RunOutcome, RunTask, one_line
 from sms_cli.errors import EXIT_INPUT, EXIT_NUMERICAL, EXIT_OK, EXIT_REQUIREMENTS, InputError, NumericalError
 
 #: results.json keys that are not outcomes of the physics (times, files) and stay out of the metrics
@@ -50,15 +50,6 @@ def _write_link(tree: dict, path: str, value) -> None:
     links = tree.setdefault("robot", {}).setdefault("links", {})
     entry = links.setdefault(link, {})
     entry[field] = [float(x) for x in value] if isinstance(value, (list, np.ndarray)) else float(value)
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    problems = getattr(exc, "problems", None)
-    if problems:
-        p = problems[0]
-        return " ".join(filter(None, [getattr(p, "field", None) and f"{p.field}:", p.message]))
-    return text[0] if text else type(exc).__name__
 
 
 def flatten(section: Any, prefix: str, out: dict[str, float]) -> None:
@@ -109,7 +100,7 @@ def execute_run(task: RunTask) -> RunOutcome:
     try:
         loaded, sm = _build(task)
     except InputError as exc:
-        return RunOutcome(status="invalid", exit_status=EXIT_INPUT, message=_one_line(exc),
+        return RunOutcome(status="invalid", exit_status=EXIT_INPUT, message=one_line(exc) or type(exc).__name__,
                           wall_s=time.perf_counter() - t0, **base)
     params = read_back(loaded, sm, task)
     results, status, message = _stages(loaded, task.stages, task.gains_yaml)
@@ -156,7 +147,7 @@ def _stages(loaded, stages: tuple[str, ...], gains_yaml: str | None = None) -> t
                 partial = getattr(exc, "result", None)
                 if partial is not None:
                     results["simulate" if stage == "simulate" else "synthesis"] = partial.section
-                return results, "diverged", _one_line(exc)
+                return results, "diverged", one_line(exc) or type(exc).__name__
     return results, "ok", ""
 
 

@@ -31,7 +31,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-from sms_cli.campaign.tasks import RunOutcome, RunTask
+from sms_cli.campaign.tasks import RunOutcome, RunTask, one_line
 from sms_cli.errors import EXIT_INTERNAL
 
 log = logging.getLogger(__name__)
@@ -52,9 +52,9 @@ def worker_name() -> str:
 
 
 def _one_line(exc: BaseException) -> str:
-    """The exception as one line: its class and the first line of its text."""
-    text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+    """An unexpected exception (a bug) as one line: its class and its first line."""
+    text = one_line(exc)
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def _exit_when_orphaned(parent_pid: int) -> None:

@@ -57,3 +57,14 @@ class RunOutcome:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception as one line for the manifest: the first problem of an sms error (field and
+    message), else the first line of its text."""
+    problems = getattr(exc, "problems", None)
+    if problems:
+        p = problems[0]
+        return " ".join(filter(None, [getattr(p, "field", None) and f"{p.field}:", p.message]))
+    text = str(exc).strip().splitlines()
+    return text[0] if text else ""
