@@ -180,3 +180,31 @@ def test_a_path_that_does_not_exist_names_file_line_and_a_did_you_mean(tmp_path)
 def test_a_mission_without_a_campaign_section_is_refused():
     with pytest.raises(InputError, match="no campaign: section"):
         define(load_mission(ROOT / "missions" / "basilisk_rw_reference.yaml"))
+
+
+def test_one_draw_written_to_several_paths_scales_them_together():
+    """Ruggiero 2020's body-mass sweep scales a body's mass and inertia together: one parameter, two paths."""
+    mission = ROOT / "missions" / "basilisk_rw_reference.yaml"
+    text = f"extends: {mission}\ncampaign:\n  runs: 3\n  entropy: 4\n  dispersions:\n" \
+           "    - {name: body, path: [robot.links.hub.mass, robot.links.hub.inertia], distribution: uniform,\n" \
+           "       low: 0, high: 200 %}\n"
+    c = define(load_mission_text(text, base_dir=mission.parent, name="b.yaml"))
+    for task in c.tasks([0, 1, 2]):
+        loaded, sm = _build(task)
+        mass, _, inertia = sm.link_inertial("hub")
+        m0, i0 = c.parameters[0].nominals
+        factor = mass / m0
+        np.testing.assert_allclose(np.asarray(inertia)[np.asarray(i0) != 0] / np.asarray(i0)[np.asarray(i0) != 0],
+                                   factor, rtol=1e-14)
+        assert factor == pytest.approx(1 + draws(c.spec, c.entropy, [task.run])[task.run]["body"], rel=1e-14)
+        assert read_back(loaded, sm, task) == {k: v for k, (_, v) in task.samples.items()}
+
+
+def test_a_component_of_a_one_number_field_is_refused_with_the_fix(tmp_path):
+    f = tmp_path / "c.yaml"
+    f.write_text(f"extends: {ROOT / 'missions' / 'pulsar_simple.yaml'}\ncampaign:\n  runs: 2\n  dispersions:\n"
+                 "    - {name: b, path: simulation.sensors.gyro.bias.0, distribution: normal, std: 1e-3, mode: absolute}\n")
+    with pytest.raises(InputError) as e:
+        define(load_mission(f))
+    text = e.value.render()
+    assert f"{f}:5" in text and "write it in the mission as a vector" in text

@@ -39,23 +39,32 @@ def new_entropy() -> int:
 
 @dataclass(frozen=True)
 class Parameter:
-    """A dispersion resolved against the mission: its nominal SI value (a number or a vector)."""
+    """A dispersion resolved against the mission: the nominal SI value (a number or a vector) at each
+    of its paths; ``nominal`` is the first path's, the one the campaign tables show."""
 
     spec: DispersionSpec
-    nominal: float | np.ndarray
+    nominals: tuple[float | np.ndarray, ...]
 
     @property
     def name(self) -> str:
         return self.spec.key
 
-    def value(self, x: float) -> float | np.ndarray:
-        """The SI value written for the draw x (relative: nominal·(1+x); offset: nominal+x; absolute: x)."""
+    @property
+    def nominal(self) -> float | np.ndarray:
+        return self.nominals[0]
+
+    def values(self, x: float) -> list[tuple[str, float | np.ndarray]]:
+        """(path, SI value) written for the draw x at each path."""
+        return [(path, self._value(x, n)) for path, n in zip(self.spec.paths, self.nominals)]
+
+    def _value(self, x: float, nominal: float | np.ndarray) -> float | np.ndarray:
+        """relative: nominal·(1+x); offset: nominal+x; absolute: x."""
         mode = self.spec.mode
         if mode == "relative":
-            return self.nominal * (1.0 + x)
+            return nominal * (1.0 + x)
         if mode == "offset":
-            return self.nominal + x
-        return np.full_like(self.nominal, x) if isinstance(self.nominal, np.ndarray) else float(x)
+            return nominal + x
+        return np.full_like(nominal, x) if isinstance(nominal, np.ndarray) else float(x)
 
     def scalar(self, value: float | np.ndarray) -> float:
         return scalar_of(self.spec.mode, self.nominal, value)

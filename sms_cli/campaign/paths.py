@@ -19,10 +19,11 @@ from pydantic import BaseModel
 class PathError(ValueError):
     """A path that does not lead to a number: the message, and what could have been meant."""
 
-    def __init__(self, message: str, suggestions: list[str] | None = None, at: int | None = None):
+    def __init__(self, message: str, suggestions: list[str] | None = None, at: int | None = None, hint: str = ""):
         super().__init__(message)
         self.suggestions = suggestions or []
         self.at = at  # index of the part that is wrong
+        self.hint = hint
 
     def corrected(self, path: str) -> list[str]:
         """``path`` with the wrong part replaced by each suggestion."""
@@ -63,7 +64,8 @@ def _child(obj: Any, part: str, where: str) -> Any:
             keys = [str(k) for k in obj]
             raise PathError(f"{where} has no key {part!r}", _did_you_mean(part, keys))
         return obj[part]
-    raise PathError(f"{where} is a number, it has no part {part!r}")
+    raise PathError(f"{where} is one number (for every axis or item here), it has no part {part!r}",
+                    hint=f"disperse {where} whole, or write it in the mission as a vector to disperse one component")
 
 
 def _numeric(value: Any, path: str) -> float | np.ndarray:

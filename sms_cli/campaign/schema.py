@@ -8,7 +8,8 @@
       dispersions:
         - {name: base_mass, path: robot.links.base_link.mass, distribution: uniform, low: -3 %, high: 3 %}
         - {name: payload, path: payloads.tile.mass, distribution: choice, values: [0, 110, 220], mode: absolute}
-        - {name: gyro_bias, path: simulation.sensors.gyro.bias.0, distribution: normal, std: 1e-5, mode: absolute}
+        - {name: body, path: [robot.links.base_link.mass, robot.links.base_link.inertia], distribution: uniform,
+           low: 0, high: 200 %}   # one draw scales the body's mass and inertia together
 
 Each dispersion draws a number x and writes, at its dotted path, ``nominal × (1 + x)``
 (``mode: relative``, the default), ``nominal + x`` (``offset``) or ``x`` (``absolute``). A path
@@ -42,9 +43,11 @@ class DispersionSpec(StrictModel):
 
     name: str | None = Field(None, description="name of the parameter in tables and plots (default: the path); "
                                                "the seed of its draws is keyed by this name")
-    path: str = Field(min_length=1, description="dotted path into the mission, e.g. payloads.tile.mass, "
-                                                "robot.links.base_link.inertia, simulation.phases.slew.duration, "
-                                                "appendages.0.modes.0.frequency; a list item by index or by its name")
+    path: str | list[str] = Field(description="dotted path into the mission, e.g. payloads.tile.mass, "
+                                               "robot.links.base_link.inertia, simulation.phases.slew.duration, "
+                                               "appendages.0.modes.0.frequency; a list item by index or by its name. "
+                                               "A list of paths applies the one draw to each (a body's mass and "
+                                               "inertia scaled together)")
     distribution: Literal["uniform", "normal", "truncated_normal", "choice"] = Field(
         description="uniform (low, high), normal (mean, std), truncated_normal (mean, std, low, high), choice (values)")
     mode: Literal["relative", "offset", "absolute"] = Field(
@@ -60,9 +63,12 @@ class DispersionSpec(StrictModel):
 
     @field_validator("path")
     @classmethod
-    def _path(cls, v: str) -> str:
-        if any(not part for part in v.split(".")):
-            raise ValueError(f"{v!r} has an empty part: write keys separated by single dots")
+    def _path(cls, v: str | list[str]) -> str | list[str]:
+        for one in [v] if isinstance(v, str) else v:
+            if not one or any(not part for part in one.split(".")):
+                raise ValueError(f"{one!r} has an empty part: write keys separated by single dots")
+        if isinstance(v, list) and (not v or len(set(v)) != len(v)):
+            raise ValueError("paths: give at least one, each once")
         return v
 
     @model_validator(mode="after")
@@ -91,9 +97,14 @@ class DispersionSpec(StrictModel):
         return self
 
     @property
+    def paths(self) -> list[str]:
+        """Every path the draw is written to (the first names the parameter when it has no name)."""
+        return [self.path] if isinstance(self.path, str) else list(self.path)
+
+    @property
     def key(self) -> str:
-        """The parameter's name (its path when unnamed)."""
-        return self.name or self.path
+        """The parameter's name (its first path when unnamed)."""
+        return self.name or self.paths[0]
 
 
 class CampaignSpec(StrictModel):

@@ -40,14 +40,16 @@ class Campaign:
         return run_count(self.spec)
 
     def samples(self, runs: list[int]) -> dict[int, dict[str, tuple[str, Any]]]:
-        """{run: {name: (path, SI value)}} for the given runs."""
+        """{run: {name: (path, SI value)}} for the given runs; a parameter written to several paths
+        has one entry per path (the second and later keyed ``name@path``)."""
         xs = draws(self.spec, self.entropy, runs)
         out = {}
         for r in runs:
             row = {}
             for p in self.parameters:
-                v = p.value(xs[r][p.name])
-                row[p.name] = (p.spec.path, [float(a) for a in v] if isinstance(v, np.ndarray) else float(v))
+                for k, (path, v) in enumerate(p.values(xs[r][p.name])):
+                    plain = [float(a) for a in v] if isinstance(v, np.ndarray) else float(v)
+                    row[p.name if k == 0 else f"{p.name}@{path}"] = (path, plain)
             out[r] = row
         return out
 
@@ -69,7 +71,8 @@ class Campaign:
             "entropy": str(self.entropy), "design": self.spec.design, "runs": self.runs,
             "stages": list(self.spec.ordered_stages), "timeout_s": float(self.spec.timeout),
             "retries": self.spec.retries,
-            "parameters": [{"name": p.name, "path": p.spec.path, "distribution": p.spec.distribution,
+            "parameters": [{"name": p.name, "path": p.spec.paths[0], "paths": p.spec.paths,
+                            "distribution": p.spec.distribution,
                             "mode": p.spec.mode, "nominal": p.nominal.tolist() if isinstance(p.nominal, np.ndarray)
                             else p.nominal, **_declared(p)} for p in self.parameters],
             "requirements": [r.model_dump(mode="json", exclude_none=True) for r in self.spec.requirements],
@@ -95,17 +98,25 @@ def define(loaded: LoadedMission, entropy: int | None = None) -> Campaign:
     sm = _nominal_model(loaded)
     params = []
     for i, d in enumerate(spec.dispersions):
-        try:
-            params.append(Parameter(d, paths.nominal(loaded.mission, d.path, sm)))
-        except paths.PathError as exc:
-            fixes = exc.corrected(d.path)
-            hint = (f"did you mean {' or '.join(fixes)}?" if fixes
-                    else "write a dotted path to a number of the mission (see the campaign schema)")
-            raise InputError(problems=[Problem(f"dispersion {d.key!r}: {exc}",
-                                               loaded.source.locate(("campaign", "dispersions", i, "path")),
-                                               f"campaign.dispersions.{i}.path", hint=hint)]) from None
+        nominals = []
+        for j, path in enumerate(d.paths):
+            at = ("campaign", "dispersions", i, "path") + ((j,) if isinstance(d.path, list) else ())
+            nominals.append(_nominal_at(loaded, sm, d, path, at))
+        params.append(Parameter(d, tuple(nominals)))
     seed = spec.entropy if spec.entropy is not None else entropy if entropy is not None else new_entropy()
     return Campaign(loaded, spec, tree, params, int(seed))
+
+
+def _nominal_at(loaded: LoadedMission, sm, d, path: str, at: tuple) -> float | np.ndarray:
+    """The nominal value of one dispersion path; InputError at the path's line with a did-you-mean."""
+    try:
+        return paths.nominal(loaded.mission, path, sm)
+    except paths.PathError as exc:
+        fixes = exc.corrected(path)
+        hint = exc.hint or (f"did you mean {' or '.join(fixes)}?" if fixes
+                            else "write a dotted path to a number of the mission (see the campaign schema)")
+        raise InputError(problems=[Problem(f"dispersion {d.key!r}: {exc}", loaded.source.locate(at),
+                                           ".".join(map(str, at)), hint=hint)]) from None
 
 
 def _tree_of(loaded: LoadedMission) -> dict[str, Any]:
@@ -174,10 +185,14 @@ def run(campaign: Campaign, folder: Path, *, scheduler: str | None = None, worke
 
 
 def needs_nominal_gains(campaign: Campaign) -> bool:
-    """Whether the runs simulate with synthesized gains they do not synthesize themselves."""
+    """Whether the runs simulate with synthesized gains (``attitude: from_gains``, an NDI without
+    gains of its own) that they do not synthesize themselves."""
     m = campaign.loaded.mission
-    return (m.synthesis is not None and m.simulation is not None and "simulate" in campaign.spec.stages
-            and "synthesize" not in campaign.spec.stages)
+    sim = m.simulation
+    if m.synthesis is None or sim is None or "simulate" not in campaign.spec.stages or "synthesize" in campaign.spec.stages:
+        return False
+    ndi_reads_gains = sim.ndi is not None and sim.ndi.gains is None and sim.ndi.kp is None
+    return sim.attitude == "from_gains" or ndi_reads_gains
 
 
 def nominal_gains(campaign: Campaign, folder: Path) -> None:
