@@ -8,7 +8,6 @@ the ones the campaign stored: equal to the last bit, or the differences are list
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from pathlib import Path
 from typing import Any

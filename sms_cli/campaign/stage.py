@@ -161,7 +161,7 @@ def run(campaign: Campaign, folder: Path, *, scheduler: str | None = None, worke
     Raises CampaignInterrupted (Ctrl-C: what finished is stored; ``--resume`` goes on)."""
     from sms_cli.campaign.execute import connect, execute
     from sms_cli.campaign.runner import execute_run
-    from sms_cli.results import ResultsDir, folder_lock
+    from sms_cli.results import folder_lock
 
     plan = folder_plan(folder, resume, restart)
     store = CampaignStore(folder, campaign.meta(), campaign.seed_of)
