@@ -208,3 +208,47 @@ def test_a_component_of_a_one_number_field_is_refused_with_the_fix(tmp_path):
         define(load_mission(f))
     text = e.value.render()
     assert f"{f}:5" in text and "write it in the mission as a vector" in text
+
+
+def test_variants_run_on_the_same_draws_and_a_paired_requirement_judges_their_difference(tmp_path):
+    """Two variants (phase durations 300 s and 500 s through their overlays) on the same samples: the
+    metrics of each are keyed by its name, the parameters are the same draw, and a ``minus``
+    requirement sees the run-by-run difference (200 s in every run)."""
+    import pyarrow as pa
+
+    from sms_cli.campaign.requirements import CampaignRequirementSpec, evaluate
+    from sms_cli.campaign.runner import execute_run
+    from sms_cli.campaign.store import outcomes_table
+
+    f = tmp_path / "v.yaml"
+    f.write_text(f"extends: {SMALL}\ncampaign:\n  runs: 6\n  dispersions:\n"
+                 "    - {name: K, path: simulation.attitude.K, distribution: uniform, low: -20 %, high: 20 %}\n"
+                 "  variants:\n"
+                 "    short: {simulation: {phases: [{name: detumble, kind: hold, duration: 300 s, "
+                 "base_mode: rotation-free-floating, attitude: [0, 0, 0]}]}}\n"
+                 "    long: {simulation: {phases: [{name: detumble, kind: hold, duration: 500 s, "
+                 "base_mode: rotation-free-floating, attitude: [0, 0, 0]}]}}\n")
+    c = define(load_mission(f))
+    outcomes = [execute_run(t) for t in c.tasks(list(range(6)))]
+    for o, t in zip(outcomes, c.tasks(list(range(6)))):
+        assert o.status == "ok"
+        assert o.metrics["short.simulate.t_end_s"] == pytest.approx(300.0)
+        assert o.metrics["long.simulate.t_end_s"] == pytest.approx(500.0)
+        assert o.params["K"] == t.samples["K"][1]
+        assert any(k.startswith("long: ") for k in o.requirements)
+    table = outcomes_table(outcomes, c.meta())
+    assert isinstance(table, pa.Table)
+    spec = CampaignRequirementSpec(name="long − short is 200 s", metric="long.simulate.t_end_s",
+                                   minus="short.simulate.t_end_s", min="199 s", max="201 s", pass_rate_min=0.5)
+    v = evaluate(spec, table)
+    assert v.status == "pass" and "6/6" in v.message
+
+
+def test_a_variant_that_does_not_load_is_refused_at_its_line(tmp_path):
+    f = tmp_path / "v.yaml"
+    f.write_text(f"extends: {SMALL}\ncampaign:\n  runs: 2\n  dispersions:\n"
+                 "    - {name: K, path: simulation.attitude.K, distribution: uniform, low: -20 %, high: 20 %}\n"
+                 "  variants:\n    bad: {simulation: {attitude: {law: mrp_feedback, K: -1, P: 30, Kx: 3}}}\n")
+    with pytest.raises(InputError) as e:
+        define(load_mission(f))
+    assert f"{f}:7" in e.value.render() and "variant 'bad'" in e.value.render()

@@ -53,6 +53,10 @@ class CampaignRequirementSpec(StrictModel):
         None, gt=0.0, le=1.0,
         description="least fraction of valid runs meeting min/max, in (0, 1]; judged on the lower "
                     "bound of the Wilson score interval at 'confidence'")
+    minus: str | None = Field(
+        None, min_length=1,
+        description="another metric subtracted from 'metric' run by run (a paired comparison: the same metric "
+                    "under another variant, e.g. 'backstepping.simulate.overall.attitude_error_deg.max')")
     correlation_with: str | None = Field(
         None, min_length=1,
         description="name of a dispersion: the requirement bounds Spearman's rank correlation of "
@@ -132,6 +136,18 @@ def _absent(table: pa.Table, column: str, what: str) -> str:
     return f"no run recorded the {what} '{column[len(prefix):]}'; {hint}"
 
 
+def _values(spec: CampaignRequirementSpec, table: pa.Table, metric: str) -> tuple[np.ndarray | None, str]:
+    """The per-run values a requirement judges: the metric, less ``minus`` run by run when given;
+    or why they are missing."""
+    from sms_cli.campaign import stats as S
+
+    why = _absent(table, S.METRIC + metric, "metric") or (spec.minus and _absent(table, S.METRIC + spec.minus, "metric"))
+    if why:
+        return None, why
+    v = S.column(table, S.METRIC + metric)
+    return (v - S.column(table, S.METRIC + spec.minus) if spec.minus else v), ""
+
+
 def evaluate_pass_rate(spec: CampaignRequirementSpec, table: pa.Table) -> Verdict:
     """Fraction of runs meeting the per-run bound, judged on its Wilson lower bound."""
     from sms_cli.campaign import stats as S
@@ -143,12 +159,13 @@ def evaluate_pass_rate(spec: CampaignRequirementSpec, table: pa.Table) -> Verdic
     shown = req.unit or m_unit
     b = _bounds(req, m_unit, shown)
     each = f"each run {_bound_text(req, b)}" + (f" {shown}" if shown else "")
-    base = {"name": spec.name, "metric": f"{path} pass rate, Wilson low", "stage": req.section(),
+    shown_path = f"{path} − {spec.minus}" if spec.minus else path
+    base = {"name": spec.name, "metric": f"{shown_path} pass rate, Wilson low", "stage": req.section(),
             "bound": f">= {spec.pass_rate_min:g} ({each})", "unit": ""}
-    why = _absent(table, S.METRIC + path, "metric")
+    v, why = _values(spec, table, path)
     if why:
         return Verdict(status="missing", value=None, message=why, **base)
-    v = S.column(table, S.METRIC + path) * convert(1.0, m_unit, shown)
+    v = v * convert(1.0, m_unit, shown)
     with np.errstate(invalid="ignore"):
         ok = np.isfinite(v) & (v >= b.get("min", -np.inf)) & (v <= b.get("max", np.inf))
     r = S.pass_rate(ok.astype(float), S.statuses(table), spec.confidence)
@@ -165,14 +182,15 @@ def evaluate_correlation(spec: CampaignRequirementSpec, table: pa.Table) -> Verd
     from sms_cli.campaign import stats as S
 
     bounds = [f"ρ {op} {b:g}" for op, b in ((">=", spec.rho_min), ("<=", spec.rho_max)) if b is not None]
-    base = {"name": spec.name, "metric": f"ρ({spec.metric}, {spec.correlation_with}), Fisher-z bound",
+    shown = f"{spec.metric} − {spec.minus}" if spec.minus else spec.metric
+    base = {"name": spec.name, "metric": f"ρ({shown}, {spec.correlation_with}), Fisher-z bound",
             "stage": spec.metric.split(".")[0], "bound": " and ".join(bounds), "unit": ""}
-    why = _absent(table, S.METRIC + spec.metric, "metric") or _absent(table, S.PARAM + spec.correlation_with, "parameter")
+    y, why = _values(spec, table, spec.metric)
+    why = why or _absent(table, S.PARAM + spec.correlation_with, "parameter")
     if why:
         return Verdict(status="missing", value=None, message=why, **base)
     ran = np.isin(S.statuses(table), S.RAN)
-    r = S.spearman(S.column(table, S.PARAM + spec.correlation_with)[ran], S.column(table, S.METRIC + spec.metric)[ran],
-                   spec.confidence)
+    r = S.spearman(S.column(table, S.PARAM + spec.correlation_with)[ran], y[ran], spec.confidence)
     if r is None:
         return Verdict(status="missing", value=None, message="fewer than 4 runs with both values, or one of them "
                                                              "constant: no rank correlation", **base)

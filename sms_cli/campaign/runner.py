@@ -8,6 +8,7 @@ a ``RunOutcome``; ``sms campaign rerun`` replays one run with its recording (``r
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 import math
 import os
 import socket
@@ -92,8 +93,23 @@ def _payload_value(mission, sm, ref: str, field: str):
     return paths.nominal(mission, f"payloads.{ref}.{field}")
 
 
+def variant_task(task: RunTask, overlay: dict[str, Any]) -> RunTask:
+    """The task on the mission with a variant's overlay merged in (as ``extends`` merges)."""
+    from sms_cli.mission.load import _merge
+
+    return replace(task, tree=_merge(task.tree, overlay), variants=())
+
+
+#: which status a run with variants takes when its variants end differently (the worst one)
+_WORST = {"ok": 0, "diverged": 1, "invalid": 2}
+
+
 def execute_run(task: RunTask) -> RunOutcome:
-    """Run the task's stages on its dispersed mission (nothing written, no recording)."""
+    """Run the task's stages on its dispersed mission (nothing written, no recording). With variants,
+    each runs on the same samples; metrics and requirements are then keyed ``<variant>.<metric>`` and
+    ``<variant>: <requirement>``, the parameters read back from the first variant."""
+    if task.variants:
+        return _combined([(name, execute_run(variant_task(task, overlay))) for name, overlay in task.variants])
     t0 = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     base = dict(run=task.run, worker=worker, attempt=task.attempt)
@@ -113,6 +129,17 @@ def execute_run(task: RunTask) -> RunOutcome:
     return RunOutcome(status=status, exit_status=exit_status, message=message, metrics=metrics,
                       params={k: (v if isinstance(v, float) else v) for k, v in params.items()},
                       requirements=verdicts, wall_s=time.perf_counter() - t0, **base)
+
+
+def _combined(outcomes: list[tuple[str, RunOutcome]]) -> RunOutcome:
+    first = outcomes[0][1]
+    worst = max((o for _, o in outcomes), key=lambda o: (_WORST.get(o.status, 0), o.exit_status))
+    return RunOutcome(
+        run=first.run, status=worst.status, exit_status=max(o.exit_status for _, o in outcomes),
+        message="; ".join(f"{name}: {o.message}" for name, o in outcomes if o.message),
+        metrics={f"{name}.{k}": v for name, o in outcomes for k, v in o.metrics.items()},
+        params=first.params, requirements={f"{name}: {k}": v for name, o in outcomes for k, v in o.requirements.items()},
+        wall_s=sum(o.wall_s for _, o in outcomes), worker=first.worker, attempt=first.attempt)
 
 
 def _build(task: RunTask):
@@ -165,10 +192,13 @@ def _requirements(loaded, results: dict[str, Any]) -> dict[str, bool | None]:
 
 
 def record_run(task: RunTask, out: Path) -> dict[str, Any]:
-    """Replay one run with the recording (``sms campaign rerun``): the CLI's stages into ``out``.
-    Returns the run's metrics (the same flattening as ``execute_run``)."""
+    """Replay one run with the recording (``sms campaign rerun``): the CLI's stages into ``out``
+    (each variant into ``out/<variant>/``). Returns the run's metrics (keyed as ``execute_run`` keys them)."""
     import sms_cli.api as api
 
+    if task.variants:
+        return {f"{name}.{k}": v for name, overlay in task.variants
+                for k, v in record_run(variant_task(task, overlay), out / name).items()}
     loaded, _ = _build(task)
     results: dict[str, Any] = {}
     out.mkdir(parents=True, exist_ok=True)

@@ -123,6 +123,11 @@ class CampaignSpec(StrictModel):
         default_factory=lambda: ["simulate"], min_length=1,
         description="stages each run executes, in the order analyze, synthesize, simulate")
     dispersions: list[DispersionSpec] = Field(min_length=1, description="the dispersed parameters")
+    variants: dict[str, dict] = Field(
+        default_factory=dict,
+        description="named designs each run executes on the same draws (a paired comparison, e.g. two control "
+                    "laws): each is a mission overlay merged as extends merges; metrics are then keyed "
+                    "'<variant>.<metric>' and requirement verdicts '<variant>: <name>'")
     timeout: Time = Field(600.0, gt=0, description="per-run timeout (s); a run past it costs one attempt")
     retries: int = Field(2, ge=0, le=20, description="further attempts of a run that failed, timed out or lost its "
                                                      "worker")
@@ -144,6 +149,9 @@ class CampaignSpec(StrictModel):
                 raise ValueError(f"grid design: give levels to {', '.join(bad)}")
         elif self.runs is None:
             raise ValueError(f"a {self.design} design needs runs: the number of runs")
+        bad = [v for v in self.variants if not v or "." in v or ":" in v]
+        if bad:
+            raise ValueError(f"variant names are plain words (no '.' or ':'): {', '.join(map(repr, bad))}")
         for r in self.requirements:
             w = getattr(r, "correlation_with", None)
             if w is not None and w not in names:

@@ -58,7 +58,8 @@ class Campaign:
         s = self.samples(runs)
         return [RunTask(run=r, tree=self.tree, base_dir=str(self.loaded.path.parent), name=self.loaded.path.name,
                         stages=self.spec.ordered_stages, samples=s[r], attempt=attempts.get(r, 0) + 1,
-                        timeout_s=float(self.spec.timeout), gains_yaml=self.gains_yaml) for r in runs]
+                        timeout_s=float(self.spec.timeout), gains_yaml=self.gains_yaml,
+                        variants=tuple(self.spec.variants.items())) for r in runs]
 
     def seed_of(self, run: int) -> dict[str, Any]:
         return {"entropy": str(self.entropy), "run": run}
@@ -75,6 +76,7 @@ class Campaign:
                             "distribution": p.spec.distribution,
                             "mode": p.spec.mode, "nominal": p.nominal.tolist() if isinstance(p.nominal, np.ndarray)
                             else p.nominal, **_declared(p)} for p in self.parameters],
+            "variants": self.spec.variants,
             "requirements": [r.model_dump(mode="json", exclude_none=True) for r in self.spec.requirements],
         }
 
@@ -103,8 +105,24 @@ def define(loaded: LoadedMission, entropy: int | None = None) -> Campaign:
             at = ("campaign", "dispersions", i, "path") + ((j,) if isinstance(d.path, list) else ())
             nominals.append(_nominal_at(loaded, sm, d, path, at))
         params.append(Parameter(d, tuple(nominals)))
+    _check_variants(loaded, tree)
     seed = spec.entropy if spec.entropy is not None else entropy if entropy is not None else new_entropy()
     return Campaign(loaded, spec, tree, params, int(seed))
+
+
+def _check_variants(loaded: LoadedMission, tree: dict[str, Any]) -> None:
+    """Each variant's mission must load: its problems are reported at the variant's line."""
+    from sms_cli.mission.load import _merge, load_mission_dict
+
+    for name, overlay in loaded.mission.campaign.variants.items():
+        where = loaded.source.locate(("campaign", "variants", name))
+        try:
+            load_mission_dict({k: v for k, v in _merge(tree, overlay).items() if k != "campaign"},
+                              base_dir=loaded.path.parent, name=loaded.path.name)
+        except InputError as exc:
+            p = exc.problems[0]
+            raise InputError(problems=[Problem(f"variant {name!r}: {p.field + ': ' if p.field else ''}{p.message}",
+                                               where, f"campaign.variants.{name}", hint=p.hint)]) from None
 
 
 def _nominal_at(loaded: LoadedMission, sm, d, path: str, at: tuple) -> float | np.ndarray:

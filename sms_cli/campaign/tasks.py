@@ -35,6 +35,7 @@ class RunTask:
     attempt: int = 1
     timeout_s: float | None = None
     gains_yaml: str | None = None
+    variants: tuple[tuple[str, dict[str, Any]], ...] = ()
 
 
 @dataclass
