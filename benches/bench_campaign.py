@@ -12,8 +12,10 @@ figures are the executor's own. It prints:
 - the overhead per run of each (short runs: wall x workers / runs - spin), and the share of the
   workers' time spent in runs;
 - the memory per Dask worker (RSS of the worker process and its sandbox child);
-- a projection of a 10^4-run campaign on 1, 16 and 256 cores from a per-run cost: ``--run-seconds``
-  (a real mission's cost), else the measured wall time of one probe run.
+- the measured cost of one run of the shipped flagship campaign (missions/campaign_pulsar_dispersions.yaml:
+  the 300 s tile transfer, 15 DoF + 10 modes, NDI + observer, dispersed), in-process after a warm-up;
+- a projection of a 10^4-run flagship campaign on 1, 16 and 256 cores from that cost (``--run-seconds``
+  replaces it; ``--no-flagship`` uses the measured wall time of one probe run instead).
 
 The setups take turns over ``--trials`` rounds and the best round of each is kept; the load average
 is printed before and after, as cores shared with other work lower every figure.
@@ -63,6 +65,30 @@ def pool_campaign(executor, count: int, seconds: float) -> float:
     for future in futures:
         assert future.result().status == "ok"
     return time.perf_counter() - started
+
+
+def flagship_run_cost(runs: int = 2) -> float:
+    """Mean wall time (s) of ``runs`` runs of the shipped flagship campaign, in this process after one
+    warm-up run (kernels loaded), with the gains synthesized once on the nominal mission."""
+    import tempfile
+    from pathlib import Path
+
+    from sms_cli.campaign.runner import execute_run
+    from sms_cli.campaign.stage import define, nominal_gains
+    from sms_cli.mission.load import load_mission
+
+    mission = Path(__file__).resolve().parents[1] / "missions" / "campaign_pulsar_dispersions.yaml"
+    campaign = define(load_mission(mission))
+    with tempfile.TemporaryDirectory() as folder:
+        nominal_gains(campaign, Path(folder))
+    tasks_ = campaign.tasks(list(range(runs + 1)))
+    execute_run(tasks_[0])
+    started = time.perf_counter()
+    for t in tasks_[1:]:
+        outcome = execute_run(t)
+        if outcome.status != "ok":
+            raise SystemExit(f"flagship run {t.run}: {outcome.status} {outcome.message}")
+    return (time.perf_counter() - started) / runs
 
 
 def rss_of_tree(pid: int) -> int:
@@ -164,7 +190,14 @@ def main() -> None:
     parser.add_argument("--spin", type=float, default=1.0, help="CPU seconds of each throughput run (default 1)")
     parser.add_argument("--runs-per-worker", type=int, default=4, help="throughput runs per worker (default 4)")
     parser.add_argument("--trials", type=int, default=3, help="rounds; the best of each is kept (default 3)")
+    parser.add_argument("--no-flagship", action="store_true",
+                        help="project from a probe run instead of measuring a flagship campaign run")
     args = parser.parse_args()
+    if args.run_seconds is None and not args.no_flagship:
+        print("measuring a run of missions/campaign_pulsar_dispersions.yaml (synthesis once, a warm-up run, 2 runs)...")
+        args.flagship_s = flagship_run_cost()
+        print(f"flagship campaign run: {args.flagship_s:.2f} s wall (300 s simulated: "
+              f"{300 / args.flagship_s:.0f}x real time)\n")
 
     print(f"cores: {os.cpu_count()}   load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(f"throughput runs: {args.runs_per_worker} per worker of {args.spin:g} s CPU spin; overhead runs: "
@@ -202,8 +235,10 @@ def report(args, setups, best, overhead, memory) -> None:
           f"{memory[2] / 2**20:.0f} MiB (2 workers)")
 
     efficiency = min(dask_eff, 1.0)
-    if args.run_seconds is not None:
-        run_cost, source = args.run_seconds + max(overhead[("dask", 2)], 0.0), "--run-seconds + dask overhead"
+    if args.run_seconds is not None or getattr(args, "flagship_s", None) is not None:
+        given = args.run_seconds if args.run_seconds is not None else args.flagship_s
+        what = "--run-seconds" if args.run_seconds is not None else "measured flagship campaign run"
+        run_cost, source = given + max(overhead[("dask", 2)], 0.0), f"{what} + dask overhead"
     else:
         run_cost, source = best[("dask", 1)]["run_wall_s"], f"measured wall of a {args.spin:g} s probe run, 1 worker"
     print(f"\nprojection of a {PROJECTED_RUNS}-run campaign at {run_cost:.3f} s per run ({source}), "
