@@ -24,7 +24,6 @@ from __future__ import annotations
 import difflib
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 from pydantic import Field, model_validator
 
 from sms_cli.check.metric_units import convert, metric_unit
@@ -32,7 +31,8 @@ from sms_cli.check.requirements import Verdict
 from sms_cli.check.schema import Bound, RequirementSpec
 from sms_cli.mission.base import StrictModel
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # numpy and pyarrow load with the verdicts, not with the mission schema (sms --help stays light)
+    import numpy as np
     import pyarrow as pa
 
 
@@ -150,6 +150,8 @@ def _values(spec: CampaignRequirementSpec, table: pa.Table, metric: str) -> tupl
 
 def evaluate_pass_rate(spec: CampaignRequirementSpec, table: pa.Table) -> Verdict:
     """Fraction of runs meeting the per-run bound, judged on its Wilson lower bound."""
+    import numpy as np
+
     from sms_cli.campaign import stats as S
     from sms_cli.check.requirements import _bound_text, _bounds
 
@@ -179,6 +181,8 @@ def evaluate_pass_rate(spec: CampaignRequirementSpec, table: pa.Table) -> Verdic
 
 def evaluate_correlation(spec: CampaignRequirementSpec, table: pa.Table) -> Verdict:
     """Sign of Spearman's ρ(metric, parameter), judged on the bound of its Fisher-z interval."""
+    import numpy as np
+
     from sms_cli.campaign import stats as S
 
     bounds = [f"ρ {op} {b:g}" for op, b in ((">=", spec.rho_min), ("<=", spec.rho_max)) if b is not None]
