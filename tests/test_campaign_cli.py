@@ -223,3 +223,15 @@ def test_a_campaign_on_a_dask_cluster_gives_the_local_results(dask_cluster, two_
     same_runs(table(out), table(two_workers))
     workers = {x["worker"] for x in manifest(out)}
     assert len(workers) >= 1
+
+
+def test_a_distribution_parameter_out_of_range_exits_2_at_its_line(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"extends: {SMALL}\ncampaign:\n  dispersions:\n"
+                   "    - {name: K, path: simulation.attitude.K, distribution: normal, std: -10 %}\n")
+    out = tmp_path / "out"
+    r = sms("campaign", bad, "-o", out)
+    assert r.returncode == 2
+    assert f"{bad}:4" in r.stderr and "std must be positive" in r.stderr
+    assert_clean(r.stderr)
+    assert not out.exists()

@@ -79,10 +79,18 @@ def _scatter_caption(s: dict[str, Any]) -> str:
 
 
 def _label(key: str) -> str:
+    """An axis label short enough for a half-column figure: the variant (if any), then the metric
+    without its section and 'overall' ("twisting: attitude_error_deg.max (deg)")."""
     from sms_cli.check.metric_units import metric_unit
+    from sms_cli.check.schema import STAGE_SECTIONS
 
+    parts = key.split(".")
+    variant = parts.pop(0) if parts[0] not in STAGE_SECTIONS.values() else ""
+    parts = parts[1:] if len(parts) > 1 else parts
+    if parts and parts[0] == "overall" and len(parts) > 1:
+        parts = parts[1:]
     unit = metric_unit(key)
-    return key.split(".", 1)[-1] + (f" ({unit})" if unit else "")
+    return (f"{variant}: " if variant else "") + ".".join(parts) + (f" ({unit})" if unit else "")
 
 
 def _bounds(metric: str, specs: list) -> list[float]:
