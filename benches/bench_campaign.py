@@ -197,7 +197,8 @@ def main() -> None:
         print("measuring a run of missions/campaign_pulsar_dispersions.yaml (synthesis once, a warm-up run, 2 runs)...")
         args.flagship_s = flagship_run_cost()
         print(f"flagship campaign run: {args.flagship_s:.2f} s wall (300 s simulated: "
-              f"{300 / args.flagship_s:.0f}x real time)\n")
+              f"{300 / args.flagship_s:.0f}x real time); memory of a process that ran it: "
+              f"{psutil.Process().memory_info().rss / 2**20:.0f} MiB RSS (a worker's sandbox holds as much)\n")
 
     print(f"cores: {os.cpu_count()}   load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(f"throughput runs: {args.runs_per_worker} per worker of {args.spin:g} s CPU spin; overhead runs: "
