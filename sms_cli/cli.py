@@ -379,9 +379,13 @@ campaign_app = typer.Typer(cls=_CampaignGroup, no_args_is_help=True, rich_markup
 app.add_typer(campaign_app, name="campaign")
 
 
+CampaignArg = Annotated[Path, typer.Argument(help="campaign file: a mission with a campaign: section",
+                                             metavar="CAMPAIGN.yaml", show_default=False)]
+
+
 @campaign_app.command("start", cls=_Command)
 def campaign_cmd(
-    mission: MissionArg,
+    mission: CampaignArg,
     out: OutOpt = None,
     workers: Annotated[Optional[int], typer.Option("--workers", "-w", min=1, help=(
         "worker processes of the local Dask cluster (default: one per core)"))] = None,
@@ -400,6 +404,11 @@ def campaign_cmd(
 
     Exit 1 when a campaign requirement fails (judged on its confidence bound), 130 on Ctrl-C (what
     finished is kept: --resume goes on).
+
+    Example:
+
+    \b
+        sms campaign missions/campaign_caldera_slew.yaml -o results/campaign_caldera_slew --workers 2
     """
     folder = default_out(mission, out)
 
@@ -424,7 +433,13 @@ def campaign_rerun_cmd(
         "where to write the run's results and recording (default: RESULTS_DIR/runs/<id>/)"))] = None,
 ) -> None:
     """Replay one run of a campaign exactly, with its recording (simulation.mcap), and compare its
-    metrics with the campaign's (exit 1 when they differ)."""
+    metrics with the campaign's (exit 1 when they differ).
+
+    Example:
+
+    \b
+        sms campaign rerun results/campaign_caldera_slew --run 17
+    """
 
     def body() -> int:
         from sms_cli.campaign.rerun import format_rerun, rerun
