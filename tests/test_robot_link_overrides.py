@@ -205,3 +205,28 @@ def test_a_link_with_round_off_negative_moments_takes_a_mass_override(tmp_path):
     sm = compile_path(mission(tmp_path, "override", text, links))
     assert close(mass_matrix(sm, sm.q0), mass_matrix(oracle, oracle.q0))
     assert close(sm.link_inertial("hand")[2], [5e-4, 5e-4, -1e-12, 0, 0, 0])
+
+
+def test_the_stored_urdf_is_the_robot_the_overrides_made():
+    """Recordings store SystemModel.urdf_text: parsed by Pinocchio alone (no mission, no overrides) it
+    gives the mass matrix of the model built with robot.links."""
+    import pinocchio as pin
+
+    from sms_cli.mission.load import load_mission_text
+    from sms_cli.model import compile_system
+
+    mission = ROOT / "missions" / "astrobee_arm.yaml"
+    text = (f"extends: {mission}\nrobot:\n  links:\n    distal_link: {{mass: 0.3, com: [0.01, 0.02, -0.03], "
+            "inertia: [0.002, 0.003, 0.004, 0.0001, -0.0002, 0.00005]}\n    base_link: {mass: 12.5}\n")
+    sm = compile_system(load_mission_text(text, base_dir=mission.parent))
+    plain = pin.buildModelFromXML(sm.urdf_text, pin.JointModelFreeFlyer())
+    q = pin.neutral(plain)
+    for jid in range(2, plain.njoints):  # the same joint angles in both models
+        q[plain.joints[jid].idx_q] = 0.3 * jid
+    qs = sm.q0.copy()
+    for jid in range(2, sm.model.njoints):
+        name = sm.model.names[jid]
+        qs[sm.model.joints[jid].idx_q] = q[plain.joints[plain.getJointId(name)].idx_q]
+    M_plain = pin.crba(plain, plain.createData(), q)
+    M_sm = pin.crba(sm.model, sm.model.createData(), qs)
+    assert np.max(np.abs(M_plain - M_sm)) <= 1e-12 * np.max(np.abs(M_sm))

@@ -18,6 +18,7 @@ from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_
 from sms_cli.model.mass_check import add_placeholders, diagnose
 from sms_cli.model.system import Appendage, ArmJoint, Partitions, Payload, Spring, SystemModel, Wheel
 from sms_cli.model.urdf_lint import MOVABLE, UrdfInfo, lint_urdf
+from sms_cli.model.urdf_inertia import with_inertials
 
 _TR_FROM_RT = np.array([3, 4, 5, 0, 1, 2])
 
@@ -275,7 +276,11 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
             eta0[a.modes] = a_spec.initial_amplitudes
 
     placeholders = _check_rigid(model, q0, info, loaded, warnings)
-    sm = SystemModel(model=model, name=mission.name, urdf_text=info.xml, idx=idx, wheels=wheels, arm=arm, springs=springs,
+    urdf_text = with_inertials(info.xml, {n: (link_inertias[n].mass, np.asarray(link_inertias[n].lever),
+                                              np.asarray(link_inertias[n].inertia))
+                                          for n, s in mission.robot.links.items()
+                                          if n in link_inertias and (s.mass, s.com, s.inertia) != (None, None, None)})
+    sm = SystemModel(model=model, name=mission.name, urdf_text=urdf_text, idx=idx, wheels=wheels, arm=arm, springs=springs,
                      appendages=appendages, payloads=payloads, ee_frame_id=ee_fid, base_frame_id=base_fid,
                      q0=q0, v0=v0, eta0=eta0, etadot0=np.zeros(start), warnings=list(warnings))
     sm.link_parents = {info.root: "world"}

@@ -94,3 +94,28 @@ KIND_SUMMARY = {
                  f"largest moment, or {ROUNDOFF_RTOL:g} for negative moments), accepted as written",
                  "nothing to do unless you want exact data; sms compile --strict refuses them"),
 }
+
+
+def with_inertials(xml: str, inertials: dict[str, tuple[float, np.ndarray, np.ndarray]]) -> str:
+    """The URDF text with each named link's ``<inertial>`` replaced by (mass kg, CoM m in the link
+    frame, 3×3 inertia kg m² about the CoM in the link axes): the robot a mission's ``robot.links``
+    made, as a file another tool can load (recordings store it)."""
+    from lxml import etree
+
+    if not inertials:
+        return xml
+    root = etree.fromstring(xml.encode("utf-8"))
+    for link in root.iter("link"):
+        name = link.get("name")
+        if name not in inertials:
+            continue
+        mass, com, I = inertials[name]
+        for old in link.findall("inertial"):
+            link.remove(old)
+        inertial = etree.SubElement(link, "inertial")
+        etree.SubElement(inertial, "origin", xyz=" ".join(repr(float(x)) for x in com), rpy="0 0 0")
+        etree.SubElement(inertial, "mass", value=repr(float(mass)))
+        etree.SubElement(inertial, "inertia", ixx=repr(float(I[0, 0])), iyy=repr(float(I[1, 1])),
+                         izz=repr(float(I[2, 2])), ixy=repr(float(I[0, 1])), ixz=repr(float(I[0, 2])),
+                         iyz=repr(float(I[1, 2])))
+    return etree.tostring(root, encoding="unicode")
