@@ -286,3 +286,12 @@ def test_figures_of_the_requirement_metrics_and_the_strongest_pairs(tmp_path):
     for n in names:
         info = png_info((folder / n).read_bytes())
         assert info["width"] == HALF_PX and float(info["text"]["sms:text-overlaps"]) == 0
+
+
+def test_perfectly_ordered_ranks_do_not_make_a_sign_significant_from_four_runs():
+    """|ρ| = 1 from 4 runs happens by chance 1 time in 12 (two-sided): its interval must include 0;
+    from 8 runs (1 in 20160) it must not. Without the half-step, atanh(1) = ∞ gives [1, 1] for any n."""
+    four = S.spearman(np.arange(4.0), np.arange(4.0) ** 2)
+    eight = S.spearman(np.arange(8.0), -np.arange(8.0) ** 3)
+    assert four["rho"] == 1.0 and four["low"] < 0.0 < four["high"] <= 1.0
+    assert eight["rho"] == -1.0 and eight["high"] < 0.0

@@ -139,7 +139,12 @@ def pass_rate(passed: np.ndarray, status: np.ndarray, confidence: float = CONFID
 
 def spearman(x: np.ndarray, y: np.ndarray, confidence: float = CONFIDENCE) -> dict[str, Any] | None:
     """Spearman's ρ of the finite (x, y) pairs with its Fisher-z interval; None when fewer than 4
-    pairs or either side is constant. Keys: rho, low, high, n, p_value, confidence."""
+    pairs or either side is constant. Keys: rho, low, high, n, p_value, confidence.
+
+    Perfectly ordered ranks (|ρ| = 1) would give atanh(±1) = ±∞ and an interval of one point
+    whatever n is; the interval is then taken about the largest |ρ| short of 1 that n ranks can
+    give less half a step, 1 − 6/(n³ − n) (so 4 perfectly ordered runs, which chance orders so one
+    time in 12, do not make a sign significant; 6 do)."""
     from scipy.stats import norm, spearmanr
 
     keep = np.isfinite(x) & np.isfinite(y)
@@ -150,8 +155,8 @@ def spearman(x: np.ndarray, y: np.ndarray, confidence: float = CONFIDENCE) -> di
     res = spearmanr(x, y)
     rho = float(np.clip(res.statistic, -1.0, 1.0))
     half = norm.ppf(0.5 + confidence / 2) * math.sqrt(1.06 / (n - 3))
-    with np.errstate(divide="ignore"):
-        z = np.arctanh(rho)
+    centre = rho if abs(rho) < 1.0 else math.copysign(1.0 - 6.0 / (n**3 - n), rho)
+    z = np.arctanh(centre)
     return {"rho": rho, "low": float(np.tanh(z - half)), "high": float(np.tanh(z + half)), "n": n,
             "p_value": _num(res.pvalue), "confidence": confidence}
 
