@@ -176,14 +176,17 @@ def test_an_unreachable_scheduler_exits_2_and_writes_nothing(tmp_path):
     assert time.monotonic() - t0 < 30
 
 
-def test_a_dispersion_path_that_does_not_exist_exits_2_at_its_line(tmp_path):
+@pytest.mark.parametrize("dispersion, words", [
+    ("{name: K, path: simulation.atitude.K, distribution: uniform, low: 0, high: 1}", "did you mean simulation.attitude"),
+    ("{name: K, path: simulation.attitude.K, distribution: normal, std: -10 %}", "std must be positive"),
+], ids=["path that does not exist", "distribution parameter out of range"])
+def test_bad_campaign_input_exits_2_at_its_line_and_writes_nothing(tmp_path, dispersion, words):
     bad = tmp_path / "bad.yaml"
-    bad.write_text(f"extends: {SMALL}\ncampaign:\n  dispersions:\n"
-                   "    - {name: K, path: simulation.atitude.K, distribution: uniform, low: 0, high: 1}\n")
+    bad.write_text(f"extends: {SMALL}\ncampaign:\n  dispersions:\n    - {dispersion}\n")
     out = tmp_path / "out"
     r = sms("campaign", bad, "-o", out)
     assert r.returncode == 2
-    assert f"{bad}:4" in r.stderr and "did you mean simulation.attitude" in r.stderr
+    assert f"{bad}:4" in r.stderr and words in r.stderr
     assert_clean(r.stderr)
     assert not out.exists()
 
@@ -223,15 +226,3 @@ def test_a_campaign_on_a_dask_cluster_gives_the_local_results(dask_cluster, two_
     same_runs(table(out), table(two_workers))
     workers = {x["worker"] for x in manifest(out)}
     assert len(workers) >= 1
-
-
-def test_a_distribution_parameter_out_of_range_exits_2_at_its_line(tmp_path):
-    bad = tmp_path / "bad.yaml"
-    bad.write_text(f"extends: {SMALL}\ncampaign:\n  dispersions:\n"
-                   "    - {name: K, path: simulation.attitude.K, distribution: normal, std: -10 %}\n")
-    out = tmp_path / "out"
-    r = sms("campaign", bad, "-o", out)
-    assert r.returncode == 2
-    assert f"{bad}:4" in r.stderr and "std must be positive" in r.stderr
-    assert_clean(r.stderr)
-    assert not out.exists()

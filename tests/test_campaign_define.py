@@ -167,14 +167,20 @@ def test_a_non_physical_draw_is_an_invalid_run_with_its_reason_never_clipped():
 
 
 # ------------------------------------------------------------------ bad campaign input
-def test_a_path_that_does_not_exist_names_file_line_and_a_did_you_mean(tmp_path):
+@pytest.mark.parametrize("mission, dispersion, line, words", [
+    (SMALL, "{name: K, path: simulation.attitude.KK, distribution: uniform, low: 0, high: 1}", 5,
+     "did you mean simulation.attitude.K?"),
+    (ROOT / "missions" / "pulsar_simple.yaml",
+     "{name: b, path: simulation.sensors.gyro.bias.0, distribution: normal, std: 1e-3, mode: absolute}", 5,
+     "write it in the mission as a vector"),
+], ids=["did-you-mean", "component of a one-number field"])
+def test_a_path_that_does_not_lead_to_a_number_names_file_line_and_the_fix(tmp_path, mission, dispersion, line, words):
     f = tmp_path / "c.yaml"
-    f.write_text(f"extends: {SMALL}\ncampaign:\n  dispersions:\n"
-                 "    - {name: K, path: simulation.attitude.KK, distribution: uniform, low: 0, high: 1}\n")
+    f.write_text(f"extends: {mission}\ncampaign:\n  runs: 2\n  dispersions:\n    - {dispersion}\n")
     with pytest.raises(InputError) as e:
         define(load_mission(f))
     text = e.value.render()
-    assert f"{f}:4" in text and "did you mean simulation.attitude.K?" in text
+    assert f"{f}:{line}" in text and words in text
 
 
 def test_a_mission_without_a_campaign_section_is_refused():
@@ -198,16 +204,6 @@ def test_one_draw_written_to_several_paths_scales_them_together():
                                    factor, rtol=1e-14)
         assert factor == pytest.approx(1 + draws(c.spec, c.entropy, [task.run])[task.run]["body"], rel=1e-14)
         assert read_back(loaded, sm, task) == {k: v for k, (_, v) in task.samples.items()}
-
-
-def test_a_component_of_a_one_number_field_is_refused_with_the_fix(tmp_path):
-    f = tmp_path / "c.yaml"
-    f.write_text(f"extends: {ROOT / 'missions' / 'pulsar_simple.yaml'}\ncampaign:\n  runs: 2\n  dispersions:\n"
-                 "    - {name: b, path: simulation.sensors.gyro.bias.0, distribution: normal, std: 1e-3, mode: absolute}\n")
-    with pytest.raises(InputError) as e:
-        define(load_mission(f))
-    text = e.value.render()
-    assert f"{f}:5" in text and "write it in the mission as a vector" in text
 
 
 def test_variants_run_on_the_same_draws_and_a_paired_requirement_judges_their_difference(tmp_path):
