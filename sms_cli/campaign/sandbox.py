@@ -149,22 +149,30 @@ class Sandbox:
         except (EOFError, OSError):  # the pipe broke: the child died
             return True, None
 
+    def _ask(self, task: RunTask, message: tuple, timeout: float | None, late: str) -> tuple[RunOutcome | None, Any, float]:
+        """Send ``message`` to the child and wait up to ``timeout``: (the faulted attempt or None,
+        the reply, wall s). No answer in time kills the child (``timeout``, message ``late``); a dead
+        child is ``crashed``."""
+        started = time.perf_counter()
+        answered, reply = self._exchange(message, timeout)
+        wall = time.perf_counter() - started
+        if not answered:
+            self.close()
+            return self._fault(task, "timeout", late, wall), None, wall
+        if reply is None:
+            return self._fault(task, "crashed", self._death_note(), wall), None, wall
+        return None, reply, wall
+
     def _load(self, task: RunTask, run_fn: RunFn) -> RunOutcome | None:
         """Start a child and import the run function in it, outside any attempt's timeout
         (None: ready; else the attempt this cost)."""
         self.close()
         self._start()
-        started = time.perf_counter()
-        answered, reply = self._exchange(("load", run_fn), LOAD_TIMEOUT_S)
-        wall = time.perf_counter() - started
-        if not answered:
-            self.close()
-            return self._fault(task, "timeout", f"the run function did not load within {LOAD_TIMEOUT_S:g} s", wall)
-        if reply is None:
-            return self._fault(task, "crashed", self._death_note(), wall)
-        if reply[0] == "error":
-            return self._outcome(task, reply, wall)
-        return None
+        fault, reply, wall = self._ask(task, ("load", run_fn), LOAD_TIMEOUT_S,
+                                       f"the run function did not load within {LOAD_TIMEOUT_S:g} s")
+        if fault is not None:
+            return fault
+        return self._outcome(task, reply, wall) if reply[0] == "error" else None
 
     def run(self, task: RunTask, run_fn: RunFn) -> RunOutcome:
         """One attempt of ``task`` through ``run_fn`` in the child; never raises for the run's faults."""
@@ -172,15 +180,9 @@ class Sandbox:
             failed = self._load(task, run_fn)
             if failed is not None:
                 return failed
-        started = time.perf_counter()
-        answered, reply = self._exchange(("run", (run_fn, task)), task.timeout_s)
-        wall = time.perf_counter() - started
-        if not answered:
-            self.close()
-            return self._fault(task, "timeout", f"no result within {task.timeout_s:g} s; the run's process was killed", wall)
-        if reply is None:
-            return self._fault(task, "crashed", self._death_note(), wall)
-        return self._outcome(task, reply, wall)
+        fault, reply, wall = self._ask(task, ("run", (run_fn, task)), task.timeout_s,
+                                       f"no result within {task.timeout_s or 0:g} s; the run's process was killed")
+        return fault if fault is not None else self._outcome(task, reply, wall)
 
     def _outcome(self, task: RunTask, reply: tuple[str, Any], wall: float) -> RunOutcome:
         kind, payload = reply
