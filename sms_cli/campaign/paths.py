@@ -113,7 +113,19 @@ def link_value(sm, link: str, field: str) -> float | np.ndarray:
     return {"mass": float(mass), "com": np.asarray(com, float), "inertia": np.asarray(inertia, float)}[field]
 
 
-def write(tree: dict, path: str, value: float | np.ndarray, mission: BaseModel) -> None:
+class Lazy:
+    """A value computed on first use (``write`` needs the validated mission only for some paths)."""
+
+    def __init__(self, make):
+        self._make, self._value = make, None
+
+    def get(self):
+        if self._value is None:
+            self._value = self._make()
+        return self._value
+
+
+def write(tree: dict, path: str, value: float | np.ndarray, mission: BaseModel | Lazy) -> None:
     """Set ``path`` in the data tree to ``value`` (SI numbers), creating the mappings the file left to
     defaults. A vector component (``…bias.2``) rewrites the whole vector, from the validated mission's
     SI numbers unless the tree already holds plain numbers there."""
@@ -125,7 +137,8 @@ def write(tree: dict, path: str, value: float | np.ndarray, mission: BaseModel) 
             continue
         component = k + 2 == len(parts) and parts[-1].isdigit()
         if component and not _plain_numbers(obj.get(part)):
-            obj[part] = [float(x) for x in nominal(mission, ".".join(parts[: k + 1]))]
+            validated = mission.get() if isinstance(mission, Lazy) else mission
+            obj[part] = [float(x) for x in nominal(validated, ".".join(parts[: k + 1]))]
         obj = obj.setdefault(part, {})
     plain = [float(x) for x in value] if isinstance(value, np.ndarray) else float(value)
     if isinstance(obj, list):

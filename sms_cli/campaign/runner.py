@@ -30,14 +30,16 @@ _MAX_LIST = 64
 
 
 def dispersed_tree(task: RunTask) -> dict[str, Any]:
-    """The run's mission data: the campaign's tree with each sample written at its path."""
+    """The run's mission data: the campaign's tree with each sample written at its path (the
+    undispersed mission is validated only when a vector component needs its SI numbers)."""
     from sms_cli.mission.load import load_mission_dict
 
     tree = copy.deepcopy(task.tree)
     tree.pop("campaign", None)
     if not task.samples:
         return tree
-    nominal = load_mission_dict(tree, base_dir=task.base_dir, name=task.name).mission
+    pristine = {k: v for k, v in task.tree.items() if k != "campaign"}
+    nominal = paths.Lazy(lambda: load_mission_dict(pristine, base_dir=task.base_dir, name=task.name).mission)
     for path, value in task.samples.values():
         if paths.is_link_path(paths.split(path)):
             _write_link(tree, path, value)
