@@ -379,6 +379,10 @@ class Simulation:
             T = np.asarray(self.att_law.torque(s, att_ref), float)
             self._base_torque = T
             if phase.base_mode == "free-flying" or self.spec.attitude_actuator == "thrusters":
+                lim = self.spec.attitude_torque_limit
+                if lim is not None:  # the ideal source's per-axis limit (the compiled loop: clip_attitude_torque)
+                    sat = bool(np.any(np.abs(T) > lim * (1 + 1e-12)))
+                    T = self._base_torque = np.clip(T, -lim, lim)
                 base_wrench[3:6] = T
             else:
                 tau_w, flags = self.wheels.clip_torque(self.wheels.allocate(T, s.wheel_speed))

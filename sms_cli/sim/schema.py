@@ -141,6 +141,11 @@ class SimulationSpec(StrictModel):
         None, description="base attitude law, or 'from_gains': the law `sms synthesize` wrote into gains.yaml "
                           "(simulation.attitude block) in the results folder")
     attitude_actuator: Literal["wheels", "thrusters"] = "wheels"
+    attitude_torque_limit: Torque | None = Field(
+        None, gt=0, description="per-axis limit (N m, base frame) of the ideal attitude torque the thrusters apply "
+                                "(attitude_actuator: thrusters, or a free-flying phase): each component of the law's "
+                                "torque is clipped to ±limit, and a clipped tick counts in saturation_time_s; "
+                                "null: no limit")
     arm: ArmLawSpec | None = Field(None, description="manipulator joint law")
     resolved_rate: ResolvedRateSpec | None = Field(None, description="end-effector tracking (phases with end_effector)")
     ndi: NdiSpec | None = Field(None, description="Kraiem 2022 NDI + observer on wheels and arm (instead of attitude/arm laws)")
@@ -164,4 +169,9 @@ class SimulationSpec(StrictModel):
         ratio = period / self.dt
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
             raise ValueError(f"the control period ({period:g} s) must be a whole number of plant steps (dt = {self.dt:g} s)")
+        if (self.attitude_torque_limit is not None and self.attitude_actuator == "wheels"
+                and not any(p.base_mode == "free-flying" for p in self.phases)):
+            raise ValueError("attitude_torque_limit limits the thrusters' ideal torque: this mission's attitude "
+                             "torque goes to the wheels (attitude_actuator: wheels, no free-flying phase), whose "
+                             "limits are their max_torque")
         return self

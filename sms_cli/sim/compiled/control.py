@@ -98,6 +98,18 @@ def mrp_feedback(qe, omega, omega_r, domega_r, wheel_speed, I, G, Js, K, P, Ki, 
     out[0], out[1], out[2] = -L0, -L1, -L2
 
 
+@njit(**_JIT)
+def clip_attitude_torque(T, limit):
+    """The thrusters' ideal torque limit: each component of T clipped to ±limit in place (inf: none).
+    Returns whether any component was clipped (``Simulation._control``, attitude_torque_limit)."""
+    sat = False
+    for a in range(3):
+        if abs(T[a]) > limit * (1 + 1e-12):
+            sat = True
+        T[a] = min(max(T[a], -limit), limit)
+    return sat
+
+
 # ----------------------------------------------------------------------------- wheels
 @njit(**_JIT)
 def allocate_and_clip(T, wheel_speed, A_pinv, null, spin, null_gain, target_speed, max_torque, tau_out):

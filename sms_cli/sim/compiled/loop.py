@@ -16,8 +16,8 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
-from sms_cli.sim.compiled.control import (allocate_and_clip, error_angle, error_quaternion, limited_torque,
-                                          may_reach_limit, mrp_feedback)
+from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
+                                          limited_torque, may_reach_limit, mrp_feedback)
 from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transforms, momenta_energy, relative_poses,
                                            rkmk4_step, workspace, world_placements)
 
@@ -50,7 +50,7 @@ def run_ticks(
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
     # law (mrpFeedback) and phase
-    law_on, thrusters, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type, L_known, q_ref,
+    law_on, thrusters, torque_limit, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type, L_known, q_ref,
     settle_tol, settle_time,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
@@ -102,7 +102,9 @@ def run_ticks(
             error_quaternion(q[3:7], q_ref, qe)
             mrp_feedback(qe, omega, zero3, zero3, ws, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type,
                          L_known, law_mem, t, T)
-            if not thrusters:
+            if thrusters:
+                sat = clip_attitude_torque(T, torque_limit)
+            else:
                 sat = allocate_and_clip(T, ws, A_pinv, null, spin, null_gain, target_speed, max_torque, tau_w)
         # trace (state at the tick)
         tr_t[k] = t

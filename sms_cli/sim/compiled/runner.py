@@ -150,6 +150,7 @@ class CompiledSimulation:
                 q_ref = AttitudeProfile(q_att_ref, phase.attitude, "step", None).q_target.astype(float)
                 law_on = phase.base_mode != "free-floating" and self.law is not None
                 thrusters = phase.base_mode == "free-flying" or spec.attitude_actuator == "thrusters"
+                torque_limit = np.inf if spec.attitude_torque_limit is None else float(spec.attitude_torque_limit)
                 settle_tol = float(phase.until_settled) if phase.until_settled is not None else -1.0
                 settled = np.array([np.nan])
                 n_ticks = int(round(phase.duration * spec.control_rate))
@@ -162,7 +163,7 @@ class CompiledSimulation:
                           "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m)}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
                     ticks, n_steps, code = run_ticks(
-                        *self._tree_args(), *wheel_args, law_on, thrusters, *law_args, q_ref, settle_tol,
+                        *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, q_ref, settle_tol,
                         float(phase.settle_time), t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
                         tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], st_t, st_q, st_v, st_tw)
@@ -220,7 +221,7 @@ class CompiledSimulation:
         self._samples(q[None], v[None])
         e1, e2 = np.empty(1), np.empty((1, nw))
         run_ticks(*self._tree_args(), np.asarray(sm.idx.wheels, dtype=np.int64), np.zeros((nw, 3)), np.zeros((nw, nw)),
-                  np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0, False, False, *self._law_args(),
+                  np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0, False, False, np.inf, *self._law_args(),
                   q[3:7].copy(), -1.0, 0.0, 0.0, 1.0, 1, 0, 0, 1e9, q, v, np.zeros(4), np.ones(nw), np.array([np.nan]),
                   e1, e1, e2, e2, np.empty(1, dtype=np.bool_), np.empty((1, 3)), np.empty((1, 6)), e1,
                   e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2)
