@@ -138,7 +138,10 @@ class Simulation:
         if recorder is not None and not self.compiled_loop:
             from sms_cli.sim.record_buffer import RecordBuffer
 
+            from sms_cli.sim.timing import records_base_wrench
+
             self._buffer = RecordBuffer(sm, recorder)
+            self._record_wrench = records_base_wrench(spec)  # thrusters or disturbances: /base/wrench
         self.ndi = None
         if spec.ndi is not None:
             from sms_cli.sim.laws.ndi import build_ndi
@@ -194,14 +197,16 @@ class Simulation:
         return self.sm.frame_pose(q, self.sm.ee_frame_id).translation
 
     # ------------------------------------------------------------------ recording
-    def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec) -> None:
-        """Queue the sample at t (reserved with ``recorder.take``); written in blocks by the buffer."""
+    def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec, base_wrench) -> None:
+        """Queue the sample at t (reserved with ``recorder.take``); written in blocks by the buffer. The
+        torques and ``base_wrench`` are those applied over the plant step ending at t (``sms_cli.sim.timing``)."""
         p, k, _ = self._momentum(t, s)
         reaction = None
         if self._fixed:
             vd, ed = self.sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, self._tau)
             reaction = self.sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
-        self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction)
+        self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction,
+                         base_wrench if self._record_wrench else None)
 
     def _event(self, t: float, name: str, detail: dict, level: str = "info") -> None:
         """An /events record, after the samples queued before it."""
@@ -257,7 +262,7 @@ class Simulation:
             n_arm = len(q_arm_ref)
             self._record(t, s, AttitudeProfile(q_att_ref, None, "step", None).at(0.0),
                          ArmRef(q_arm_ref.copy(), np.zeros(n_arm), np.zeros(n_arm)), np.zeros(self.wheels.n),
-                         np.zeros(n_arm), np.zeros(3))
+                         np.zeros(n_arm), np.zeros(3), np.zeros(6))
         try:
             for ip, phase in enumerate(spec.phases):
                 t_phase0 = t
@@ -318,7 +323,8 @@ class Simulation:
                         t += self.dt
                         steps += 1
                         if rec_take is not None and rec_take(t):
-                            self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]))
+                            self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]),
+                                         tau[:6])
                     self._check(s)
                     self.progress.update(t)
                     if phase.until_settled is not None:

@@ -1,6 +1,6 @@
 """``sms inspect``: summarise an MCAP recording (topics, schemas, counts, time span, rates, run
-status), find damage, and ``--repair`` a recording that a killed run, a full disk or flipped bytes
-left incomplete.
+status, whether another engine can replay it: ``replay_check``), find damage, and ``--repair`` a
+recording that a killed run, a full disk or flipped bytes left incomplete.
 
 A complete file is read through its summary and message indexes, and every chunk is decompressed
 once to check its CRC (fast: no message is parsed). A file without a summary (a run killed while
@@ -313,6 +313,8 @@ def inspect_recording(path: str | Path) -> dict[str, Any]:
             f.seek(0)
             metadata = {m.name: dict(m.metadata) for m in make_reader(f).iter_metadata()}
             attachments = [a.name for a in summary.attachment_indexes]
+            f.seek(0)
+            events = [m.data for _, _, m in make_reader(f).iter_messages(topics=["/events"])]
             if "repair" in metadata:
                 r = metadata["repair"]
                 note = (f"repaired by `sms inspect --repair`: {r.get('damaged_chunks_dropped', '0')} damaged chunk(s) "
@@ -328,6 +330,9 @@ def inspect_recording(path: str | Path) -> dict[str, Any]:
             compression = sorted({c.compression or "none" for k, c, _ in sc.items if k == "chunk"})
             metadata = {r.name: dict(r.metadata) for k, r, _ in sc.items if k == "metadata"}
             attachments = [r.name for k, r, _ in sc.items if k == "attachment"]
+            events_cid = [c for c, ch in channels.items() if ch.topic == "/events"]
+            events = [data[start + 22:end] for k, _, data in sc.items if k == "chunk" and events_cid
+                      for op, _, cid, _, start, end in _inner(data) if op == OP_MESSAGE and cid == events_cid[0]]
             if sc.end == "marker":  # the writer's end marker: it is still writing, or stopped before finishing
                 from sms_cli.results import lock_holder, pid_alive
 
@@ -380,7 +385,45 @@ def inspect_recording(path: str | Path) -> dict[str, Any]:
         "run": run,
         "attachments": attachments,
         "note": note,
+        "replay": replay_check(metadata, channels, spans, events),
     }
+
+
+def replay_check(metadata: dict, channels: dict, spans: dict, events=()) -> dict[str, Any]:
+    """Whether another engine can replay the recording from its own topics: what its ``sms.timing``
+    metadata says (``sms_cli.sim.timing``), checked against the sample times (every control tick
+    sampled) and the /events payloads ``events`` (a joint stop's impulse is not a recorded input).
+    ``replayable`` None: the recording has no ``sms.timing`` (an older one)."""
+    import json
+
+    from sms_cli.sim.timing import TIMING_METADATA, missing_ticks
+
+    timing = metadata.get(TIMING_METADATA)
+    if not timing:
+        return {"replayable": None, "reasons": [f"the recording has no {TIMING_METADATA} metadata (it predates it): "
+                                                "its timing is unknown"]}
+    reasons = [r for r in timing.get("not_replayable_because", "").split("; ") if r]
+    out = {"control_rate_hz": float(timing["control_rate_hz"]), "plant_dt_s": float(timing["plant_dt_s"]),
+           "record_rate_hz": timing.get("record_rate_hz"), "command_stamp": timing.get("command_stamp", "")}
+    cids = [c for c, ch in channels.items() if ch.topic == "/attitude"]
+    stamps = spans.get(cids[0], [0, None, None, set()])[3] if cids else set()
+    n, missing, first = missing_ticks(stamps, float(timing["control_period_s"]), out["plant_dt_s"])
+    if missing:
+        reasons.append(f"{missing} of the {n} control ticks up to the last sample have no sample (the first at "
+                       f"t = {first:.6g} s), so the commands of those control periods are not in the recording")
+    stops = []
+    for raw in events:
+        try:
+            event = json.loads(bytes(raw))
+        except ValueError:
+            continue
+        if event.get("name") == "joint_stop":
+            stops.append(event)
+    if stops:
+        reasons.append(f"a joint reached its stop {len(stops)} time(s) (first {stops[0].get('detail', {}).get('joint', '?')} "
+                       f"at t = {float(stops[0].get('t') or 0):.6g} s): the stop's impulse and holding force are not "
+                       "recorded inputs")
+    return {"replayable": not reasons, "reasons": reasons, **out}
 
 
 def repair_recording(path: str | Path) -> dict[str, Any]:
@@ -500,6 +543,16 @@ def format_inspection(info: dict[str, Any]) -> str:
     else:
         lines.append("  no topics")
     lines.append(f"  metadata: {', '.join(info['metadata']) or '-'}")
+    replay = info.get("replay") or {}
+    if replay.get("replayable") is None:
+        lines.append("  replay: unknown: " + "; ".join(replay.get("reasons", ["no sms.timing metadata"])))
+    elif replay["replayable"]:
+        period = 1e3 / replay["control_rate_hz"]
+        lines.append(f"  replay: yes: every control tick is sampled; a torque stamped at a control tick t_k acted over "
+                     f"[t_k - {period:.6g} ms, t_k] (control {replay['control_rate_hz']:.6g} Hz, plant step "
+                     f"{1e3 * replay['plant_dt_s']:.6g} ms, RKMK4; metadata sms.timing)")
+    else:
+        lines.append("  replay: NO, this recording cannot be replayed by another engine: " + "; ".join(replay["reasons"]))
     if info["attachments"]:
         lines.append(f"  attachments: {', '.join(info['attachments'])}")
     return "\n".join(lines)

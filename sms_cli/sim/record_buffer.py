@@ -37,13 +37,14 @@ class RecordBuffer:
         return len(self._rows)
 
     def add(self, t: float, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p, k,
-            reaction=None) -> None:
-        """One sample (copies of the arrays; ``reaction`` only while the base is held)."""
+            reaction=None, wrench=None) -> None:
+        """One sample (copies of the arrays; ``reaction`` only while the base is held; ``wrench``, the
+        wrench applied to the base, in every sample of a run that records it or in none)."""
         poses = None if self.kinematics is not None else self._pinocchio_poses(q)
         self._rows.append((t, q.copy(), v.copy(), eta.copy(), np.array(wheel_torque, float), np.array(joint_torque, float),
                            np.array(ref_quat, float), np.array(joint_ref, float), np.array(err_vec, float),
                            np.array(p, float), np.array(k, float), None if reaction is None else np.array(reaction, float),
-                           poses))
+                           poses, None if wrench is None else np.array(wrench, float)))
         if len(self._rows) >= self.capacity:
             self.flush()
 
@@ -72,14 +73,15 @@ class RecordBuffer:
         t, q, v, eta, tw, tm, ref, jref, err, p, k = (np.array(c) for c in cols[:11])
         reaction = None if cols[11][0] is None else np.array(cols[11])
         world = None if self.kinematics is not None else np.array(cols[12])
-        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world)
+        wrench = None if cols[13][0] is None else np.array(cols[13])
+        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world, wrench)
 
     def write(self, t, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p=None, k=None,
-              reaction=None, world=None) -> None:
+              reaction=None, world=None, wrench=None) -> None:
         """Write n samples given as stacks (leading axis n) at once, bypassing the queue: the
         block path of both engines. p, k None: the rigid tree's momenta (compiled kinematics);
         ``world`` (n, n_links + 1, 7): world poses of the links and end effector when there are
-        no compiled kinematics."""
+        no compiled kinematics; ``wrench`` (n, 6): the wrench applied to the base (``/base/wrench``)."""
         if self.kinematics is not None:
             world, rel, mom = self.kinematics(q, v)
             transforms, relative = rel[:, :-1], True
@@ -89,5 +91,5 @@ class RecordBuffer:
             transforms, relative = world[:, :-1], False
         scalars = numeric_topics(self.sm, q=q, v=v, wheel_torque=wheel_torque, ref_quat=ref_quat, err_vec=err_vec,
                                  momentum_p=p, momentum_k=k, ee=world[:, -1, :3], joint_torque=joint_torque,
-                                 joint_ref=joint_ref, eta=eta, base_reaction=reaction)
+                                 joint_ref=joint_ref, eta=eta, base_reaction=reaction, base_wrench=wrench)
         self.rec.write_block(t, transforms=transforms, scalars=scalars, relative=relative)

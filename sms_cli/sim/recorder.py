@@ -32,7 +32,10 @@ t = 0; Foxglove shows them as dates in January 1970):
 - ``/events`` (``sms.Event``: t, name, level, detail) and the same text on ``/log``
   (``foxglove.Log``, for Foxglove's Log panel).
 - metadata records ``mission`` (name, text, sha256), ``model`` (summary; non-string values as
-  JSON), ``versions``, and at the end ``run`` (status, steps, samples, events, sim times).
+  JSON), ``versions``, those given as ``metadata`` (``sms simulate`` adds ``sms.timing``: control
+  rate, plant step, integrator and at which time a torque is stamped relative to the interval it
+  acted over, see ``sms_cli.sim.timing``), and at the end ``run`` (status, steps, samples, events,
+  sim times).
 
 Decimation: with ``record_rate_hz = r`` a sample is taken at the first call with
 t ≥ t₀ + k/r (k = 1, 2, …; tolerance 1 ppm of the period), where t₀ is the first call's time, so
@@ -182,7 +185,8 @@ class McapRecorder:
     Parameters: ``path`` (written in place, parents created); ``mission_text`` and
     ``mission_name`` (metadata ``mission``); ``model_summary`` (metadata ``model``); ``urdf_text``
     (``/robot_description`` + attachment, or None); ``versions`` (metadata ``versions``);
-    ``record_rate_hz`` (None = every call). Tuning: ``chunk_size`` (uncompressed bytes per chunk),
+    ``record_rate_hz`` (None = every call); ``metadata``: more metadata records (name → {key: text}),
+    written with the others at the start (``sms simulate``: ``sms.timing``, ``sms_cli.sim.timing``). Tuning: ``chunk_size`` (uncompressed bytes per chunk),
     ``compression`` ('zstd', 'lz4' or ''; falls back to what is importable).
     """
 
@@ -196,6 +200,7 @@ class McapRecorder:
         urdf_text: str | None,
         versions: Mapping[str, str],
         record_rate_hz: float | None = None,
+        metadata: Mapping[str, Mapping[str, str]] | None = None,
         chunk_size: int = 256 * 1024,
         compression: str = "zstd",
     ) -> None:
@@ -213,6 +218,10 @@ class McapRecorder:
         self._model_summary = dict(model_summary)
         self._urdf_text = urdf_text
         self._versions = {str(k): str(v) for k, v in versions.items()}
+        self._metadata = {str(name): {str(k): str(v) for k, v in record.items()} for name, record in (metadata or {}).items()}
+        clash = sorted(set(self._metadata) & {"mission", "model", "versions", "run", "repair"})
+        if clash:
+            raise ValueError(f"recorder: metadata records {clash} are the recorder's own")
         self._chunk_size = int(chunk_size)
         self._compression = available_compression(compression) if compression else ""
 
@@ -330,6 +339,8 @@ class McapRecorder:
         )
         w.add_metadata("model", {str(k): v if isinstance(v, str) else _dumps(v) for k, v in self._model_summary.items()})
         w.add_metadata("versions", self._versions)
+        for name, record in self._metadata.items():
+            w.add_metadata(name, record)
         if self._urdf_text is not None:
             w.add_attachment("robot.urdf", "application/xml", self._urdf_text.encode())
         if self._links is not None:

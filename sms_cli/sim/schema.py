@@ -3,8 +3,9 @@ disturbances and the phase sequence."""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
+from annotated_types import Gt
 from pydantic import Field, model_validator
 
 from sms_cli.mission.base import Position3, Rotation3, StrictModel, Vector3, vector
@@ -131,12 +132,20 @@ class NdiSpec(StrictModel):
     attitude_gain: float = Field(0.05, gt=0, description="k_att (1/s): base rate command ω_des = ω_ref − k_att θ_e")
 
 
+# a frequency > 0 inside a union (the bound on the number itself, as Field(gt=0) puts it on a plain quantity)
+_PositiveFrequency = Annotated[(float, Gt(0)) + Frequency.__metadata__]
+
+
 class SimulationSpec(StrictModel):
     """Nonlinear simulation of the mission (``sms simulate``)."""
 
     dt: Time = Field(0.01, gt=0, description="plant step (s)")
     control_rate: Frequency = Field(10.0, gt=0, description="controller rate (Hz); ZOH between updates")
-    record_rate: Frequency | None = Field(20.0, gt=0, description="MCAP sample rate (Hz); null records every plant step")
+    record_rate: _PositiveFrequency | Literal["control"] | None = Field(
+        "control", description="MCAP sample rate (Hz): 'control' (the default) samples at the control rate, every "
+                                "control tick, so that the recording can be replayed (see the metadata record "
+                                "sms.timing); null records every plant step; a rate that is not a whole multiple "
+                                "of the control rate makes a recording that cannot be replayed")
     attitude: AttitudeLawSpec | Literal["from_gains"] | None = Field(
         None, description="base attitude law, or 'from_gains': the law `sms synthesize` wrote into gains.yaml "
                           "(simulation.attitude block) in the results folder")
@@ -165,6 +174,8 @@ class SimulationSpec(StrictModel):
     def _check(self):
         if self.ndi is not None and (self.attitude is not None or self.arm is not None):
             raise ValueError("'ndi' drives the wheels and the arm: remove 'attitude' and 'arm'")
+        if self.record_rate == "control":
+            self.record_rate = self.control_rate  # every control tick: a recording another engine can replay
         period = 1.0 / self.control_rate
         ratio = period / self.dt
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

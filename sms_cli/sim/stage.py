@@ -133,11 +133,17 @@ def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path,
     from sms_cli.model.summary import model_summary
     from sms_cli.sim.engine import Simulation
     from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.sim.timing import TIMING_METADATA, timing_metadata
 
     spec = loaded.mission.simulation
     summary = model_summary(sm)
+    timing = timing_metadata(spec)
     rec = McapRecorder(mcap_path, mission_text=loaded.text, mission_name=loaded.mission.name, model_summary=summary,
-                       urdf_text=sm.urdf_text, versions=versions(), record_rate_hz=spec.record_rate)
+                       urdf_text=sm.urdf_text, versions=versions(), record_rate_hz=spec.record_rate,
+                       metadata={TIMING_METADATA: timing})
+    if timing["not_replayable_because"]:  # said before the run, and by `sms inspect` after it
+        print(f"warning: the recording cannot be replayed by another engine: {timing['not_replayable_because']}",
+              file=sys.stderr, flush=True)
     links = list(sm.link_parents)
     rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
     base = _base(loaded)

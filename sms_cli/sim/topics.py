@@ -15,10 +15,12 @@ from sms_cli.model.conventions import euler_zyx_from_quaternions
 
 
 def numeric_topics(sm, *, q, v, wheel_torque, ref_quat, err_vec, momentum_p, momentum_k, ee, joint_torque=None,
-                   joint_ref=None, eta=None, base_reaction=None) -> dict[str, dict]:
+                   joint_ref=None, eta=None, base_reaction=None, base_wrench=None) -> dict[str, dict]:
     """topic → {field: value}: attitude (+ roll/pitch/yaw), its error and reference, base rate and
     position, end-effector position, momentum (p; k about the CoM), wheels, joints, modes, and the
-    base reaction when the base is held (``base_reaction`` not None)."""
+    base reaction when the base is held (``base_reaction`` not None), and the wrench applied to the base
+    by thrusters and disturbances (``base_wrench`` not None: a mission that has them), like the torques
+    the one applied over the plant step ending at the sample's time (``sms_cli.sim.timing``)."""
     rpy = np.degrees(euler_zyx_from_quaternions(q[..., 3:7]))
     out = {
         "/attitude": {"qx": q[..., 3], "qy": q[..., 4], "qz": q[..., 5], "qw": q[..., 6],
@@ -47,4 +49,8 @@ def numeric_topics(sm, *, q, v, wheel_torque, ref_quat, err_vec, momentum_p, mom
         w = base_reaction
         out["/base/reaction"] = {"fx": w[..., 0], "fy": w[..., 1], "fz": w[..., 2],
                                  "nx": w[..., 3], "ny": w[..., 4], "nz": w[..., 5]}
+    if base_wrench is not None:  # base frame, [f; n] about the base origin: Pinocchio's tau[:6]
+        w = base_wrench
+        out["/base/wrench"] = {"fx": w[..., 0], "fy": w[..., 1], "fz": w[..., 2],
+                               "nx": w[..., 3], "ny": w[..., 4], "nz": w[..., 5]}
     return out

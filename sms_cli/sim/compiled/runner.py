@@ -22,6 +22,7 @@ from sms_cli.sim.compiled.kinematics import SampleKinematics
 from sms_cli.sim.record_buffer import RecordBuffer
 from sms_cli.sim.recorder import RecordingInterrupted
 from sms_cli.sim.schema import SimulationSpec
+from sms_cli.sim.timing import records_base_wrench
 
 CHUNK_STEPS = 20_000
 COMPILE_NOTICE_AFTER_S = 1.0
@@ -84,6 +85,7 @@ class CompiledSimulation:
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
         self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
+        self.record_wrench = records_base_wrench(spec)  # thrusters: /base/wrench (sms_cli.sim.timing)
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
 
     # ------------------------------------------------------------------ pieces
@@ -93,8 +95,9 @@ class CompiledSimulation:
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.kinematics(qs, vs)
 
-    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None) -> None:
-        """Offer the plant-step states to the recorder and write the samples it picks."""
+    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None) -> None:
+        """Offer the plant-step states to the recorder and write the samples it picks (``wrench``: the
+        thrusters' wrench on the base per step, for ``/base/wrench``)."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
@@ -103,7 +106,8 @@ class CompiledSimulation:
         refs = np.broadcast_to(ref_quat, (n, 4))
         err = attitude_error(refs, qs[:, 3:7]) if err_vec is None else err_vec
         none = np.zeros((n, 0))  # no modes, no arm
-        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], none, refs, none, err)
+        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], none, refs, none, err,
+                          wrench=None if wrench is None else wrench[idx])
 
     def _law_args(self):
         law = self.law
@@ -140,7 +144,8 @@ class CompiledSimulation:
         with compile_notice():  # the first calls compile the kernels on a cold cache
             self._warm_up()
         if self.rec is not None:  # the initial state is part of the recording
-            self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)))
+            self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
+                         np.zeros((1, 6)) if self.record_wrench else None)
         wall0 = time.perf_counter()
         try:
             for ip, phase in enumerate(spec.phases):
@@ -176,7 +181,13 @@ class CompiledSimulation:
                         t = float(st_t[n_steps - 1])
                         steps += n_steps
                         if self.rec is not None:
-                            self._record(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref)
+                            wrench = None
+                            if self.record_wrench:  # the law's torque of each tick, held over its plant steps
+                                wrench = np.zeros((n_steps, 6))
+                                if law_on and thrusters:
+                                    wrench[:, 3:6] = np.repeat(piece["base_torque"], self.n_sub, axis=0)[:n_steps]
+                            self._record(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref,
+                                         wrench=wrench)
                     self.progress.update(t)
                     if code == NON_FINITE:
                         raise _Stop("the state became non-finite")
