@@ -158,3 +158,26 @@ def test_the_limit_is_refused_when_the_torque_goes_to_the_wheels():
         SimulationSpec(attitude_actuator="thrusters", attitude_torque_limit=0, phases=phases)
     ok = SimulationSpec(attitude_torque_limit="70 mN m", phases=[{"name": "fly", "duration": 1, "base_mode": "free-flying"}])
     assert ok.attitude_torque_limit == pytest.approx(0.07)
+
+
+def test_the_shipped_comparison_gives_both_laws_the_twisting_budget():
+    """astrobee_slew_*.yaml and campaign_ruggiero_laws.yaml compare the laws under one limit, equal to the
+    twisting law's own bound k1 + k2 (the budget the thesis's twisting runs had); the campaign judges the
+    ranking as a paired difference against 0, not against a number taken from a run."""
+    missions = ROOT / "missions"
+    tw = load_mission(missions / "astrobee_slew_twisting.yaml").mission
+    bs = load_mission(missions / "astrobee_slew_backstepping.yaml").mission
+    camp = load_mission(missions / "campaign_ruggiero_laws.yaml").mission
+    k = tw.simulation.attitude.k1 + tw.simulation.attitude.k2
+    for m in (tw, bs, camp):
+        assert m.simulation.attitude_actuator == "thrusters"
+        assert m.simulation.attitude_torque_limit == pytest.approx(k)
+    assert bs.simulation.attitude.law == "backstepping" and tw.simulation.attitude.law == "twisting_smc"
+    assert camp.campaign.variants["backstepping"]["simulation"]["attitude"]["law"] == "backstepping"
+    assert "attitude" not in camp.campaign.variants["twisting"].get("simulation", {})
+    paired = [r for r in camp.campaign.requirements if r.minus]
+    assert {(r.metric.split(".")[0], r.minus.split(".")[0]) for r in paired} == {("backstepping", "twisting")}
+    from sms_cli.mission.units import any_to_si
+
+    assert all(any_to_si(r.max) == 0.0 and r.min is None for r in paired)
+    assert any("settling_time_s" in r.metric for r in paired)
