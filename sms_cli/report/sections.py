@@ -434,6 +434,8 @@ _SIM_LABELS = [
     ("wheel_torque_peak_Nm", "wheel torque, peak", "N m"), ("wheel_speed_peak_rad_s", "wheel speed, peak", "rpm"),
     ("joint_torque_peak", "joint torque, peak", "N m or N"), ("saturation_time_s", "time in saturation", "s"),
     ("modal_amplitude_peak", "modal amplitude, peak", "√kg m"),
+    ("joint_stop_time_s", "time on the joint stops (summed over the joints)", "s"),
+    ("joint_stop_penetration_max", "joint past a URDF limit, max", "rad or m"),
 ]
 CONSERVATION = {
     "linear_momentum_drift_abs": ("linear momentum drift, absolute", "N s"),

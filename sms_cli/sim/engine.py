@@ -11,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.dynamics.integrator import State, rkmk4_step
+from sms_cli.dynamics.joint_stops import arm_penetration
 from sms_cli.model.system import SystemModel
 from sms_cli.sim.actuators import WheelArray, clip_joint_torque
 from sms_cli.sim.attitude_math import attitude_error
@@ -157,8 +158,31 @@ class Simulation:
         self._segment = 0
         self._base_torque = np.zeros(3)
         self._mom_t, self._mom = None, None
+        self._init_stops()
 
     # ------------------------------------------------------------------ helpers
+    def _init_stops(self) -> None:
+        """Joint stops (simulation.joint_stops): the law, and the Pinocchio plants it steps when the
+        compiled plant does not (the Python engine, a held base). The stop table is kept without the law
+        too: the trace then shows how far the joints run past their limits."""
+        from sms_cli.dynamics.joint_stops import JointStops, PinocchioPlant, stop_table
+
+        self._stop_table = stop_table(self.sm)
+        enabled = self.spec.joint_stops.enabled and self._stop_table.n > 0
+        self.stops = JointStops(self.sm, self.spec.joint_stops.restitution) if enabled else None
+        self._pin_plants = {False: PinocchioPlant(self.sm), True: PinocchioPlant(self.sm, fixed=True)}
+
+    def _stop_step(self, s: State, tau: np.ndarray, t: float, fixed: bool) -> State:
+        """One plant step under the stop law; its arrivals and releases go to /events."""
+        plant = self.plant if self.plant is not None and not fixed else self._pin_plants[fixed]
+        s = self.stops.step(plant, s, tau, self.dt, t)
+        if self.stops.events:
+            if self.rec is not None:
+                for ev in self.stops.events:
+                    self._event(*ev)
+            self.stops.events.clear()
+        return s
+
     def _accel(self, tau: np.ndarray, fixed: bool = False):
         fd = self.sm.forward_dynamics_fixed_base if fixed else self.sm.forward_dynamics
         return lambda q, v, e, ed: fd(q, v, e, ed, tau)
@@ -249,6 +273,11 @@ class Simulation:
 
             with compile_notice():  # loads (on a cold cache: compiles) the plant kernel
                 self.plant.step(s, np.zeros(sm.nv), self.dt)
+                if self.stops is not None:  # and the joint-stop kernels
+                    cols = self.stops.table.v_index[:1]
+                    self.plant.accel(s, np.zeros(sm.nv))
+                    self.plant.inverse_mass_columns(s.q, cols)
+                    self.plant.step(s, np.zeros(sm.nv), self.dt, cols)
         trace = Trace()
         t = 0.0
         steps = 0
@@ -316,7 +345,9 @@ class Simulation:
                                 tau[sm.idx.wheels] = self.wheels.speed_limited(tau_w, ws, self.dt) + self.wheels.friction_torque(ws)
                         else:
                             tau = tau_tick
-                        if self.plant is not None and not fixed:
+                        if self.stops is not None:
+                            s = self._stop_step(s, tau, t, fixed)
+                        elif self.plant is not None and not fixed:
                             s = self.plant.step(s, tau, self.dt)
                         else:
                             s = rkmk4_step(sm.model, s, self.dt, lambda q, v, e, ed, _tau=tau: fd(q, v, e, ed, _tau))
@@ -325,6 +356,8 @@ class Simulation:
                         if rec_take is not None and rec_take(t):
                             self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]),
                                          tau[:6])
+                    if self.stops is not None:  # this tick's time on stop and deepest penetration
+                        trace.joint_stop_time[-1], trace.joint_stop_penetration[-1] = self.stops.interval(s)
                     self._check(s)
                     self.progress.update(t)
                     if phase.until_settled is not None:
@@ -419,6 +452,8 @@ class Simulation:
         tr.saturated.append(sat)
         tr.base_torque.append(self._base_torque.copy())
         tr.modal_peak.append(float(np.max(np.abs(s.eta))) if s.eta.size else 0.0)
+        tr.joint_stop_time.append(np.zeros(len(sm.arm)))  # the tick's time on stop: set after its plant steps
+        tr.joint_stop_penetration.append(arm_penetration(self._stop_table, len(sm.arm), s.q))
         p, _, k_origin = self._momentum(t, s)
         tr.momentum.append(np.concatenate([p, k_origin]))
         tr.energy.append(sm.energy(s.q, s.v, s.eta, s.etadot))
@@ -446,13 +481,14 @@ def build_result(spec: SimulationSpec, sm: SystemModel, status, why, t, steps, a
     """Metrics per phase and overall from the per-tick trace arrays ``a`` (``Trace.arrays()``)."""
     band = spec.settle_tolerance
     dtc = 1.0 / spec.control_rate
+    names = [j.name for j in sm.arm]
     phases = []
     for ip, t0, t1 in spans:
         mask = a["phase"] == ip
-        summary = summarize(a, mask, band, dtc) if np.any(mask) else {}
+        summary = summarize(a, mask, band, dtc, names) if np.any(mask) else {}
         summary.update({"name": spec.phases[ip].name, "kind": spec.phases[ip].kind, "duration_s": t1 - t0})
         phases.append(summary)
-    overall = summarize(a, np.ones(a["t"].size, dtype=bool), band, dtc) if a["t"].size else {}
+    overall = summarize(a, np.ones(a["t"].size, dtype=bool), band, dtc, names) if a["t"].size else {}
     timing = {"engine": engine, "wall_s": wall, "sim_s": t, "steps": steps, "us_per_step": 1e6 * wall / max(steps, 1),
               "real_time_factor": t / wall if wall > 0 else None}
     return SimResult(status, t, steps, phases, overall, conservation(a, np.array([w.spin_inertia for w in sm.wheels])),

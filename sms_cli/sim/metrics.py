@@ -27,6 +27,10 @@ class Trace:
     base_reaction: list[np.ndarray] = field(default_factory=list)  # [f; n] base frame, nan when the base is not held
     base_torque: list[np.ndarray] = field(default_factory=list)  # attitude-law torque on the base (N m, base frame)
     segment: list[int] = field(default_factory=list)  # bumps when a payload is attached/released or the base is held
+    # joint stops, per arm joint: s spent on a stop during the tick [t, t + 1/control_rate), and the largest
+    # penetration beyond the URDF range in that tick (rad or m; also without the stops: how far past)
+    joint_stop_time: list[np.ndarray] = field(default_factory=list)
+    joint_stop_penetration: list[np.ndarray] = field(default_factory=list)
 
     def arrays(self) -> dict[str, np.ndarray]:
         def stack(x, width):
@@ -40,6 +44,7 @@ class Trace:
             "base_reaction": np.array(self.base_reaction) if self.base_reaction else np.zeros((len(self.t), 6)),
             "segment": np.array(self.segment, dtype=int),
             "base_torque": np.array(self.base_torque) if self.base_torque else np.zeros((len(self.t), 3)),
+            "joint_stop_time": stack(self.joint_stop_time, 0), "joint_stop_penetration": stack(self.joint_stop_penetration, 0),
         }
 
 
@@ -60,8 +65,9 @@ def _stats(x: np.ndarray) -> dict[str, float]:
     return {"max": float(np.nanmax(np.abs(x))), "rms": float(math.sqrt(np.nanmean(x**2))), "final": float(x[~np.isnan(x)][-1])}
 
 
-def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_control: float) -> dict:
-    """Metrics of the samples selected by mask."""
+def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_control: float,
+              arm_names: list[str] | None = None) -> dict:
+    """Metrics of the samples selected by mask (``arm_names``: the arm joints, to name per-joint metrics)."""
     t = a["t"][mask]
     out: dict = {"start_s": float(t[0]) if t.size else None, "end_s": float(t[-1]) if t.size else None}
     att = _stats(a["att_err"][mask])
@@ -86,7 +92,19 @@ def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_contro
         out["base_reaction_torque_peak_Nm"] = float(np.nanmax(np.linalg.norm(br[:, 3:], axis=1)))
     mp = a["modal_peak"][mask]
     out["modal_amplitude_peak"] = float(np.max(mp)) if mp.size else None
+    out.update(joint_stop_metrics(a, mask, arm_names))
     return out
+
+
+def joint_stop_metrics(a: dict[str, np.ndarray], mask: np.ndarray, arm_names: list[str] | None = None) -> dict:
+    """Time on the joint stops (s, summed over the joints; per arm joint, by name) and the largest
+    penetration beyond a URDF limit (rad or m) of the samples selected by mask."""
+    st, pen = a["joint_stop_time"][mask], a["joint_stop_penetration"][mask]
+    per_joint = np.sum(st, axis=0)
+    names = arm_names if arm_names is not None else [str(i) for i in range(per_joint.size)]
+    return {"joint_stop_time_s": float(np.sum(st)),
+            "joint_stop_time_per_joint_s": {n: float(x) for n, x in zip(names, per_joint)},
+            "joint_stop_penetration_max": float(np.max(pen)) if pen.size else 0.0}
 
 
 def conservation(a: dict[str, np.ndarray], wheel_spin_inertia: np.ndarray | None = None) -> dict:

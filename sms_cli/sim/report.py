@@ -7,6 +7,16 @@ def _f(x, fmt: str = ".4g", unit: str = "") -> str:
     return "—" if x is None else f"{x:{fmt}}{unit}"
 
 
+def _stop_line(p: dict) -> str:
+    """Time on the joint stops and penetration beyond the URDF limits of a phase ('' when neither)."""
+    t, pen = p.get("joint_stop_time_s") or 0.0, p.get("joint_stop_penetration_max") or 0.0
+    if t <= 0 and pen <= 0:
+        return ""
+    per = ", ".join(f"{n} {x:.3g} s" for n, x in (p.get("joint_stop_time_per_joint_s") or {}).items() if x > 0)
+    return (f"joints on a stop {t:.3g} s" + (f" ({per})" if per else "")
+            + f"; max penetration beyond a limit {pen:.3g} rad or m")
+
+
 def format_simulation(sec: dict) -> str:
     """Per-phase table and overall metrics."""
     lines = [f"status {sec['status']}" + (f" ({sec['divergence']})" if sec.get("divergence") else "")
@@ -28,6 +38,10 @@ def format_simulation(sec: dict) -> str:
         if p.get("base_reaction_torque_peak_Nm") is not None:
             lines.append(f"  {p['name']}: base held; reaction peaks {p['base_reaction_force_peak_N']:.4g} N, "
                          f"{p['base_reaction_torque_peak_Nm']:.4g} N m")
+    for p in sec["phases"]:
+        line = _stop_line(p)
+        if line:
+            lines.append(f"  {p['name']}: {line}")
     c = sec.get("conservation", {})
     if c:
         lines.append(f"momentum drift linear {_f(c.get('linear_momentum_drift_abs'), '.2e')} N s"

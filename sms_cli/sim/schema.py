@@ -113,6 +113,16 @@ class DisturbanceSpec(StrictModel):
     duration: Time = 0.0
 
 
+class JointStopsSpec(StrictModel):
+    """The arm joints' URDF limits as rigid unilateral stops of the plant (sms_cli.dynamics.joint_stops): an
+    impulse at arrival (momentum conserved), then the joint held on its stop by a constraint force until
+    the drive pulls it away. Continuous joints and joints without limits have none."""
+
+    enabled: bool = Field(True, description="model the stops (false: the joints move through their limits)")
+    restitution: float = Field(0.0, ge=0, le=1, description="joint rate after an impact = −restitution × the rate "
+                                                            "before; 0: inelastic (the joint stays on its stop)")
+
+
 class DivergenceSpec(StrictModel):
     """When the simulation counts as diverged (exit code 3, recording kept)."""
 
@@ -163,6 +173,7 @@ class SimulationSpec(StrictModel):
     sensors: SensorsSpec = Field(default_factory=SensorsSpec)
     disturbances: list[DisturbanceSpec] = Field(default_factory=list)
     divergence: DivergenceSpec = Field(default_factory=DivergenceSpec)
+    joint_stops: JointStopsSpec = Field(default_factory=JointStopsSpec)
     settle_tolerance: Angle = Field(0.01, description="attitude error band for settling time (rad)")
     engine: Literal["auto", "compiled", "python"] = Field(
         "auto", description="auto: the compiled loop (numba) when the mission fits it (rigid base, reaction wheels, "

@@ -275,12 +275,14 @@ def _subspace(kind, axis, S):
 @njit(**_JIT)
 def workspace(n, nq, nv, ne=0):
     """Scratch arrays for n bodies (nq, nv, ne modes), reused by every kernel below (no allocation
-    in the hot loop)."""
+    in the hot loop). Entries 25-33 are the joint-stop kernels' (``lock_joints``)."""
     return (np.empty((n, 6)), np.zeros((n, 6)), np.empty((n, 6, 6)), np.empty((n, 6)), np.zeros((n, 6)),
             np.ones(n), np.zeros(n), np.empty((n, 6)), np.empty((n, 3, 3)), np.empty((n, 3)),
             np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty(6), np.empty(6), np.empty(6),
             np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((8, nv)), np.empty(nq),
-            np.empty((10, ne)), np.empty(nv), np.zeros((6, 6)), np.zeros(6), np.empty(6))
+            np.empty((10, ne)), np.empty(nv), np.zeros((6, 6)), np.zeros(6), np.empty(6),
+            np.zeros(nv), np.empty(nv), np.empty(nv), np.zeros((6, 6)), np.zeros(6), np.empty((nv + ne, nv)),
+            np.empty((nv, nv)), np.empty((nv, nv)), np.empty(nv))
 
 
 @njit(**_HOT)
@@ -587,11 +589,12 @@ def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, arma
 @njit(**_JIT)
 def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
-               q, v, eta, etad, tau, dt, q_out, v_out, eta_out, etad_out, ws):
+               q, v, eta, etad, tau, dt, q_out, v_out, eta_out, etad_out, ws, locked=None):
     """One RKMK4 step of size dt (s) under the held generalized forces τ
     (``sms_cli.dynamics.integrator.rkmk4_step``): the configuration moves on the manifold with the
     dexp⁻¹ correction, velocities and modal states are plain vectors. The four stages are one loop
-    so that the inlined dynamics is compiled once."""
+    so that the inlined dynamics is compiled once. The joints ``locked`` (velocity indices, int64;
+    None or empty: none) are held at zero acceleration at every stage (``lock_joints``: joint stops)."""
     nv, ne = v.shape[0], eta.shape[0]
     h = 0.5 * dt
     st = ws[18]
@@ -614,6 +617,9 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
         hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                         neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                         qs, vs, md[4], md[5], tau, acc[stage], md[stage], ws)
+        if locked is not None and locked.shape[0] > 0:
+            lock_joints(parent, kind, axis, inertia, leaf_IA, armature, idx_v, ws[8], ws[9], modal_Bt, locked,
+                        acc[stage], md[stage], ws)
         w = 1.0 if stage == 0 or stage == 3 else 2.0
         for k in range(ne):
             md[6, k] += w * md[5, k]
@@ -643,3 +649,105 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
 
 
 aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
+
+
+# ----------------------------------------------------------------------------- joint stops
+# The contact law of sms_cli.dynamics.joint_stops (which holds the rest of the stop law, for both
+# engines): columns of M⁻¹ and the acceleration of locked joints held at zero.
+@njit(**_JIT)
+def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws):
+    """G[:, j] = column cols[j] of the inverse augmented mass matrix (rows nv..: the modal part) at the
+    joint transforms (R_rel, p_rel): ABA at zero velocity on a unit generalized force, the base-mounted
+    modes as the root inertia −BᵀB, then η̈ = −B v̇_b (``SystemModel`` module docstring)."""
+    nv, ne = armature.shape[0], modal_Bt.shape[1]
+    zero_v, unit, col, root_dI, zero_f = ws[25], ws[26], ws[27], ws[28], ws[29]  # zero_v, zero_f stay zero
+    for a in range(6):
+        for b in range(6):
+            acc = 0.0
+            for k in range(ne):
+                acc += modal_Bt[a, k] * modal_Bt[b, k]
+            root_dI[a, b] = -acc
+    for j in range(cols.shape[0]):
+        for a in range(nv):
+            unit[a] = 0.0
+        unit[cols[j]] = 1.0
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
+        for a in range(nv):
+            G[a, j] = col[a]
+        for k in range(ne):
+            acc = 0.0
+            for a in range(6):
+                acc -= modal_Bt[a, k] * col[a]
+            G[nv + k, j] = acc
+
+
+@njit(**_JIT)
+def _solve_spd(A, b, k, L, out):
+    """out[:k] = A[:k, :k]⁻¹ b[:k] for a symmetric positive definite A (Cholesky; L is k×k scratch)."""
+    for j in range(k):
+        d = A[j, j]
+        for m in range(j):
+            d -= L[j, m] * L[j, m]
+        d = math.sqrt(d)
+        L[j, j] = d
+        for i in range(j + 1, k):
+            x = A[i, j]
+            for m in range(j):
+                x -= L[i, m] * L[j, m]
+            L[i, j] = x / d
+    for i in range(k):
+        x = b[i]
+        for m in range(i):
+            x -= L[i, m] * out[m]
+        out[i] = x / L[i, i]
+    for i in range(k - 1, -1, -1):
+        x = out[i]
+        for m in range(i + 1, k):
+            x -= L[m, i] * out[m]
+        out[i] = x / L[i, i]
+
+
+@njit(**_JIT)
+def lock_joints(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, locked, vdot, etadd, ws):
+    """The contact law (``joint_stops.lock_accelerations``): add the generalized forces λ on the joints
+    ``locked`` that make their accelerations zero, a = a_free + M⁻¹ e_L λ with (M⁻¹)_LL λ = −(a_free)_L;
+    vdot (nv) and etadd (ne) hold a_free on entry, a on return."""
+    nv, ne, k = vdot.shape[0], etadd.shape[0], locked.shape[0]
+    G, A, L, lam = ws[30], ws[31], ws[32], ws[33]
+    _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, locked, G, ws)
+    rhs = ws[21]  # free: hybrid_dynamics is done with τ_eff
+    for i in range(k):
+        rhs[i] = -vdot[locked[i]]
+        for j in range(k):
+            A[i, j] = G[locked[i], j]
+    _solve_spd(A, rhs, k, L, lam)
+    for a in range(nv):
+        acc = 0.0
+        for j in range(k):
+            acc += G[a, j] * lam[j]
+        vdot[a] += acc
+    for m in range(ne):
+        acc = 0.0
+        for j in range(k):
+            acc += G[nv + m, j] * lam[j]
+        etadd[m] += acc
+
+
+@njit(**_JIT)
+def accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+                  neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
+                  q, v, eta, etad, tau, vdot, etadd, ws):
+    """``hybrid_dynamics`` behind a plain call: the free accelerations (v̇, η̈), for the stop law's
+    contact decisions."""
+    hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+                    neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
+                    q, v, eta, etad, tau, vdot, etadd, ws)
+
+
+@njit(**_JIT)
+def inverse_mass_columns(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, q, cols, G,
+                         ws):
+    """G (nv + ne × len(cols)) = columns cols of the inverse augmented mass matrix at q (stop impulses)."""
+    R_rel, p_rel = ws[8], ws[9]
+    joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+    _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws)

@@ -6,7 +6,9 @@ term and a root bias force, joint springs as generalized forces): one call inste
 forward dynamics and the stage arithmetic in Python. Supported: what ``tree.flatten`` accepts,
 with appendages (if any) all on the base; a held base (phase mode ``fixed``) stays in Python.
 Same results as ``sms_cli.dynamics.integrator.rkmk4_step`` with ``SystemModel.forward_dynamics``
-(tests/test_compiled_engine.py).
+(tests/test_compiled_engine.py). It is also the compiled counterpart of
+``sms_cli.dynamics.joint_stops.PinocchioPlant`` for the joint stops (``accel``,
+``inverse_mass_columns``, ``step`` with locked joints; tests/test_joint_stops.py).
 """
 
 from __future__ import annotations
@@ -56,11 +58,39 @@ class CompiledPlant:
         T = flatten(self.sm.model)
         self._tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.leaf_IA, T.armature, T.idx_q, T.idx_v)
 
-    def step(self, s: State, tau: np.ndarray, dt: float) -> State:
-        """The state after one RKMK4 step of dt (s) under the held generalized forces tau (nv)."""
+    def step(self, s: State, tau: np.ndarray, dt: float, locked: np.ndarray | None = None) -> State:
+        """The state after one RKMK4 step of dt (s) under the held generalized forces tau (nv), the
+        joints ``locked`` (velocity indices; joint stops) held at zero acceleration."""
         from sms_cli.sim.compiled.dynamics import rkmk4_step
 
         out = State(np.empty_like(s.q), np.empty_like(s.v), np.empty_like(s.eta), np.empty_like(s.etadot))
         rkmk4_step(*self._tree, *self._modal, *self._springs, s.q, s.v, s.eta, s.etadot,
-                   np.ascontiguousarray(tau, dtype=float), float(dt), out.q, out.v, out.eta, out.etadot, self._ws)
+                   np.ascontiguousarray(tau, dtype=float), float(dt), out.q, out.v, out.eta, out.etadot, self._ws,
+                   _indices(locked))
         return out
+
+    def accel(self, s: State, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Free accelerations (v̇, η̈) at s under tau (nv): ``SystemModel.forward_dynamics``."""
+        from sms_cli.sim.compiled.dynamics import accelerations
+
+        vdot, etadd = np.empty(self.sm.nv), np.empty(self.sm.n_modes)
+        accelerations(*self._tree, *self._modal, *self._springs, s.q, s.v, s.eta, s.etadot,
+                      np.ascontiguousarray(tau, dtype=float), vdot, etadd, self._ws)
+        return vdot, etadd
+
+    def inverse_mass_columns(self, q: np.ndarray, v_idx: np.ndarray) -> np.ndarray:
+        """Columns v_idx of the inverse augmented mass matrix at q (nx×k; rows nv..: the modes)."""
+        from sms_cli.sim.compiled.dynamics import inverse_mass_columns
+
+        cols = _indices(v_idx)
+        G = np.empty((self.sm.nx, cols.size))
+        inverse_mass_columns(*self._tree, self._modal[0], np.ascontiguousarray(q, dtype=float), cols, G, self._ws)
+        return G
+
+
+_NONE = np.zeros(0, dtype=np.int64)
+
+
+def _indices(idx) -> np.ndarray:
+    """An int64 index array for the kernels (empty for None)."""
+    return _NONE if idx is None else np.ascontiguousarray(idx, dtype=np.int64)

@@ -257,7 +257,8 @@ class CompiledSimulation:
         a["base_torque"], a["momentum"] = cat("base_torque", 3), cat("momentum", 6)
         n = a["t"].size
         a.update({"joint_err": np.zeros((n, 0)), "ee_err": np.full(n, np.nan), "joint_torque": np.zeros((n, 0)),
-                  "modal_peak": np.zeros(n), "base_reaction": np.full((n, 6), np.nan), "segment": np.zeros(n, dtype=int)})
+                  "modal_peak": np.zeros(n), "base_reaction": np.full((n, 6), np.nan), "segment": np.zeros(n, dtype=int),
+                  "joint_stop_time": np.zeros((n, 0)), "joint_stop_penetration": np.zeros((n, 0))})  # no arm
         return a
 
 
