@@ -79,8 +79,8 @@ def test_observer_recovers_unmeasured_modes(tmp_path):
     assert sim_obj.plant is not None  # the compiled plant steps this model: follow its η
     step = sim_obj.plant.step
 
-    def tracking_step(s, tau, dt):
-        out = step(s, tau, dt)
+    def tracking_step(s, tau, dt, *locked):  # the joint-stop law also passes the locked joints
+        out = step(s, tau, dt, *locked)
         state["eta"] = out.eta.copy()
         return out
 

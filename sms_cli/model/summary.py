@@ -64,12 +64,18 @@ def compile_summary(mission_path: Path, strict: bool = False) -> dict[str, Any]:
 
     loaded = load_mission(mission_path)
     sm = compile_system(loaded, strict=strict)
+    moves = None
     if loaded.mission.simulation is not None:
+        from sms_cli.sim.stage import planned_simulation
         from sms_cli.sim.validate import validate_simulation
 
         validate_simulation(sm, loaded)
+        moves = [p.as_dict() for p in planned_simulation(sm, loaded)[1]]
     out = model_summary(sm)
     out["mission_file"] = str(mission_path)
+    if moves:
+        out["moves"] = moves
+        out["auto_duration"] = loaded.mission.simulation.auto_duration.model_dump()
     return _jsonable(out)
 
 
@@ -116,6 +122,12 @@ def format_summary(s: dict[str, Any]) -> str:
         lines.append("coupled   free-free elastic frequencies: " + ", ".join(f"{x:.4g}" for x in s["coupled_frequencies_hz"]) + " Hz")
     for p in s["payloads"]:
         lines.append(f"payload   {p['name']}: {p['mass_kg']:.4g} kg at {p['frame']} ({'attached' if p['attached'] else 'detached'} at t=0)")
+    if s.get("moves"):
+        from types import SimpleNamespace
+
+        from sms_cli.sim.authority import format_moves
+
+        lines.extend(format_moves(s["moves"], SimpleNamespace(**s["auto_duration"])))
     if s.get("kinematics_only"):
         lines.append("model     KINEMATICS ONLY: placeholder inertias on " + ", ".join(s["kinematics_only"])
                      + " (dynamics stages refuse it)")

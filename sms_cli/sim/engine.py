@@ -404,6 +404,8 @@ class Simulation:
             self.sm.attach_payload(name)
         if self.plant is not None and (phase.attach or phase.detach):
             self.plant.refresh()
+        if self.ndi is not None and (phase.attach or phase.detach):
+            self.ndi.model_changed()
         if self.rec is not None:
             self._event(t, "phase", phase_event(phase))
 
@@ -451,6 +453,11 @@ class Simulation:
         tr.joint_torque.append(np.asarray(tau_m, float).copy())
         tr.saturated.append(sat)
         tr.base_torque.append(self._base_torque.copy())
+        if sm.arm:  # Kraiem 2022 (3.67) rate tracking
+            tr.joint_rate_ref.append(np.array(arm_ref.qd, float))
+            tr.joint_rate.append(s.v[sm.idx.arm].copy())
+            if self.ndi is not None and sm.wheels:  # the law's desired wheel rates (attitude hold included)
+                tr.wheel_rate_ref.append(self.ndi.wheel_rate_ref.copy())
         tr.modal_peak.append(float(np.max(np.abs(s.eta))) if s.eta.size else 0.0)
         tr.joint_stop_time.append(np.zeros(len(sm.arm)))  # the tick's time on stop: set after its plant steps
         tr.joint_stop_penetration.append(arm_penetration(self._stop_table, len(sm.arm), s.q))

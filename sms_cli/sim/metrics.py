@@ -27,6 +27,11 @@ class Trace:
     base_reaction: list[np.ndarray] = field(default_factory=list)  # [f; n] base frame, nan when the base is not held
     base_torque: list[np.ndarray] = field(default_factory=list)  # attitude-law torque on the base (N m, base frame)
     segment: list[int] = field(default_factory=list)  # bumps when a payload is attached/released or the base is held
+    # Kraiem 2022 (3.67) rate tracking (when the model has an arm): desired and actual joint rates; the
+    # desired wheel rates of the NDI law (its attitude hold: the rates that bring the base to ω_des)
+    joint_rate_ref: list[np.ndarray] = field(default_factory=list)
+    joint_rate: list[np.ndarray] = field(default_factory=list)
+    wheel_rate_ref: list[np.ndarray] = field(default_factory=list)
     # joint stops, per arm joint: s spent on a stop during the tick [t, t + 1/control_rate), and the largest
     # penetration beyond the URDF range in that tick (rad or m; also without the stops: how far past)
     joint_stop_time: list[np.ndarray] = field(default_factory=list)
@@ -44,8 +49,22 @@ class Trace:
             "base_reaction": np.array(self.base_reaction) if self.base_reaction else np.zeros((len(self.t), 6)),
             "segment": np.array(self.segment, dtype=int),
             "base_torque": np.array(self.base_torque) if self.base_torque else np.zeros((len(self.t), 3)),
+            **{k: np.array(getattr(self, k)) for k in ("joint_rate_ref", "joint_rate", "wheel_rate_ref")
+               if len(getattr(self, k)) == len(self.t) and self.t},
             "joint_stop_time": stack(self.joint_stop_time, 0), "joint_stop_penetration": stack(self.joint_stop_penetration, 0),
         }
+
+
+def relative_rate_error(ref: np.ndarray, actual: np.ndarray) -> float | None:
+    """Kraiem 2022 (3.67): max over actuators and samples of |q̇_d,i − q̇_i| / max_t |q̇_d,i| (samples × actuators),
+    actuators whose reference never moves (max |q̇_d,i| ≤ 1e-9) left out; None when none moves."""
+    if ref.size == 0:
+        return None
+    scale = np.max(np.abs(ref), axis=0)
+    moving = scale > 1e-9
+    if not np.any(moving):
+        return None
+    return float(np.max(np.abs(ref[:, moving] - actual[:, moving]) / scale[moving]))
 
 
 def settling_time(t: np.ndarray, err: np.ndarray, band: float) -> float | None:
@@ -90,6 +109,11 @@ def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_contro
     if br.size and np.any(np.isfinite(br)):
         out["base_reaction_force_peak_N"] = float(np.nanmax(np.linalg.norm(br[:, :3], axis=1)))
         out["base_reaction_torque_peak_Nm"] = float(np.nanmax(np.linalg.norm(br[:, 3:], axis=1)))
+    if "joint_rate_ref" in a:
+        out["joint_rate_error_rel_max"] = relative_rate_error(a["joint_rate_ref"][mask], a["joint_rate"][mask])
+    if "wheel_rate_ref" in a:  # a tracking measure of the arm's motion: none where the arm does not move
+        out["wheel_rate_error_rel_max"] = (relative_rate_error(a["wheel_rate_ref"][mask], a["wheel_speed"][mask])
+                                           if out.get("joint_rate_error_rel_max") is not None else None)
     mp = a["modal_peak"][mask]
     out["modal_amplitude_peak"] = float(np.max(mp)) if mp.size else None
     out.update(joint_stop_metrics(a, mask, arm_names))

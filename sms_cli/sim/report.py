@@ -42,6 +42,14 @@ def format_simulation(sec: dict) -> str:
         line = _stop_line(p)
         if line:
             lines.append(f"  {p['name']}: {line}")
+    for p in sec["phases"]:
+        j, w = p.get("joint_rate_error_rel_max"), p.get("wheel_rate_error_rel_max")
+        if j is not None or w is not None:
+            lines.append(f"  {p['name']}: rate tracking (Kraiem 2022 (3.67)) joints {_f(j, '.2e')}, wheels {_f(w, '.2e')}")
+    auto = [m for m in sec.get("moves") or [] if m.get("given_s") is None]
+    if auto:
+        lines.append("moves sized from the actuator authority: " + ", ".join(
+            f"{m['phase']} #{m['segment']} {m['duration_s']:.0f} s (set by {m['limited_by']})" for m in auto))
     c = sec.get("conservation", {})
     if c:
         lines.append(f"momentum drift linear {_f(c.get('linear_momentum_drift_abs'), '.2e')} N s"

@@ -22,7 +22,8 @@ BaseMode = Literal["free-floating", "rotation-free-floating", "free-flying", "fi
 class Waypoint(StrictModel):
     """Joint positions to reach at a time from the phase start (quintic interpolation, rest to rest)."""
 
-    at: Time = Field(description="time from the phase start (s)")
+    at: Time | None = Field(None, description="time from the phase start (s); omitted in a phase of duration 'auto', "
+                                              "whose segments are sized from the actuator authority")
     joints: dict[str, Angle] = Field(description="joint positions by name (rad or m); others keep their value")
 
 
@@ -40,7 +41,10 @@ class PhaseSpec(StrictModel):
 
     name: str
     kind: Literal["slew", "deploy", "grasp", "move_payload", "release", "track", "hold"] = "hold"
-    duration: Time = Field(gt=0)
+    duration: Time | Literal["auto"] = Field(
+        description="phase length (s); 'auto' (joint-waypoint phases): each rest-to-rest segment gets the shortest "
+                    "duration whose reference needs at most simulation.auto_duration's fraction of every actuator's "
+                    "torque and speed limit (inverse dynamics, see sms compile)")
     base_mode: BaseMode = "rotation-free-floating"
     attitude: Rotation3 | None = Field(None, description="target base attitude, roll-pitch-yaw (Z-Y-X), inertial")
     attitude_profile: Literal["step", "smooth"] = Field(
@@ -60,6 +64,19 @@ class PhaseSpec(StrictModel):
     def _check(self):
         if self.waypoints and self.end_effector is not None:
             raise ValueError("a phase has either joint waypoints or an end_effector target, not both")
+        if self.duration == "auto":
+            if not self.waypoints:
+                raise ValueError("duration 'auto' sizes joint moves: this phase has no waypoints (give a duration in s)")
+            if any(w.at is not None for w in self.waypoints):
+                raise ValueError("in a phase of duration 'auto' the waypoints take no 'at' (each segment is sized from the "
+                                 "actuator authority): remove 'at', or give the phase a duration in s")
+            if self.until_settled is not None or self.attitude_profile == "smooth":
+                raise ValueError("duration 'auto' cannot be combined with until_settled or a smooth attitude slew")
+            return self
+        if any(w.at is None for w in self.waypoints):
+            raise ValueError("every waypoint needs 'at' (time from the phase start), unless the phase duration is 'auto'")
+        if self.duration <= 0:
+            raise ValueError("the phase duration must be positive")
         times = [w.at for w in self.waypoints]
         if times != sorted(times) or any(t <= 0 for t in times):
             raise ValueError("waypoint times must be positive and increasing")
@@ -113,6 +130,19 @@ class DisturbanceSpec(StrictModel):
     duration: Time = 0.0
 
 
+class AutoDurationSpec(StrictModel):
+    """How phases of duration 'auto' are sized: the reference's inverse dynamics (free-floating base held at
+    rest by the wheels, zero momentum: Kraiem 2022 (4.51); payloads as attached in that phase; modes at rest)
+    scales exactly as 1/T² in torque and 1/T in speed, so the shortest segment duration meeting
+    ``torque_fraction`` of every torque limit and ``speed_fraction`` of every speed limit is closed-form."""
+
+    torque_fraction: float = Field(0.5, gt=0, le=1, description="largest share of each actuator's torque limit the "
+                                                                "reference may need (the rest is left to feedback)")
+    speed_fraction: float = Field(0.8, gt=0, le=1, description="largest share of each wheel and joint speed limit")
+    hold_after: Time = Field(10.0, ge=0, description="time the phase continues after its last segment (s)")
+    round_to: Time = Field(1.0, gt=0, description="segment durations are rounded up to a multiple of this (s)")
+
+
 class JointStopsSpec(StrictModel):
     """The arm joints' URDF limits as rigid unilateral stops of the plant (sms_cli.dynamics.joint_stops): an
     impulse at arrival (momentum conserved), then the joint held on its stop by a constraint force until
@@ -140,6 +170,10 @@ class NdiSpec(StrictModel):
     kv: list[float] | float | None = Field(None, description="1/s per actuator")
     L: list[list[float]] | None = Field(None, description="observer gain (2 n_f + 3) × 3 for x = [f; ω0; ḟ], y = ω0")
     attitude_gain: float = Field(0.05, gt=0, description="k_att (1/s): base rate command ω_des = ω_ref − k_att θ_e")
+    wheel_feedforward: bool = Field(
+        True, description="wheel accelerations that keep the base from rotating under the commanded arm acceleration "
+                          "(the derivative of the (3.66) wheel-rate reference); false: the wheels act on the base-rate "
+                          "error alone")
 
 
 # a frequency > 0 inside a union (the bound on the number itself, as Field(gt=0) puts it on a plain quantity)
@@ -174,6 +208,7 @@ class SimulationSpec(StrictModel):
     disturbances: list[DisturbanceSpec] = Field(default_factory=list)
     divergence: DivergenceSpec = Field(default_factory=DivergenceSpec)
     joint_stops: JointStopsSpec = Field(default_factory=JointStopsSpec)
+    auto_duration: AutoDurationSpec = Field(default_factory=AutoDurationSpec)
     settle_tolerance: Angle = Field(0.01, description="attitude error band for settling time (rad)")
     engine: Literal["auto", "compiled", "python"] = Field(
         "auto", description="auto: the compiled loop (numba) when the mission fits it (rigid base, reaction wheels, "

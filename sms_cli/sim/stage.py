@@ -55,8 +55,9 @@ class SimulationDiverged(NumericalError):
         self.run = run
 
 
-def _prepared(loaded: LoadedMission) -> SystemModel:
-    """The compiled model of a mission with a valid ``simulation:`` section (InputError otherwise)."""
+def _prepared(loaded: LoadedMission):
+    """(compiled model, simulation spec with every ``duration: auto`` resolved, move plans) of a mission
+    with a valid ``simulation:`` section (InputError otherwise)."""
     from sms_cli.model import compile_system
     from sms_cli.sim.validate import validate_simulation
 
@@ -65,19 +66,34 @@ def _prepared(loaded: LoadedMission) -> SystemModel:
                                            hint="add simulation: {dt, control_rate, attitude, arm, phases: [...]}")])
     sm = compile_system(loaded)
     validate_simulation(sm, loaded)  # a bad name is exit 2 before a recording exists
-    return sm
+    spec, plans = planned_simulation(sm, loaded)
+    return sm, spec, plans
+
+
+def planned_simulation(sm, loaded: LoadedMission):
+    """(spec with ``duration: auto`` phases sized, move plans) — ``sms_cli.sim.authority``."""
+    from sms_cli.sim.authority import plan_moves, resolve_durations
+
+    spec = loaded.mission.simulation
+    try:
+        plans = plan_moves(sm, spec)
+    except ValueError as exc:
+        raise InputError(problems=[Problem(str(exc), loaded.source.locate(("simulation", "phases")),
+                                           "simulation.phases", "give that phase a duration in s")]) from None
+    return resolve_durations(spec, plans), plans
 
 
 def _base(loaded: LoadedMission) -> dict:
     return {"mission": loaded.mission.name, "mission_file": str(loaded.path)}
 
 
-def _section(result: SimResult, base: dict, files: dict) -> dict:
-    """The ``simulate`` section of a run (whole, or what ran of it)."""
+def _section(result: SimResult, base: dict, files: dict, plans=()) -> dict:
+    """The ``simulate`` section of a run (whole, or what ran of it); ``moves``: the joint-move plans
+    (``sms_cli.sim.authority``) with the durations used."""
     return {
         "status": result.status, "divergence": result.divergence or None, "t_end_s": result.t_end, "steps": result.steps,
         "overall": result.overall, "phases": result.phases, "conservation": result.conservation, "timing": result.timing,
-        **base, "files": files,
+        "moves": [p.as_dict() for p in plans], **base, "files": files,
     }
 
 
@@ -104,10 +120,10 @@ def record_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | No
     recording cut back to its last whole chunk (readable), the section says so, DiskFull (exit 3).
     Results of another mission in ``out_dir`` are not mixed in (``ResultsDir.writing``). gains.yaml
     (``attitude: from_gains``, the NDI) is read from ``gains_dir``, by default ``out_dir``."""
-    sm = _prepared(loaded)
+    sm, spec, plans = _prepared(loaded)
     results = ResultsDir(out_dir)
     with results.writing(loaded.mission.name, loaded.path):
-        return _simulate(loaded, sm, results, Path(mcap_path) if mcap_path else results.file("simulation.mcap"), progress,
+        return _simulate(loaded, sm, spec, plans, results, Path(mcap_path) if mcap_path else results.file("simulation.mcap"), progress,
                          Path(gains_dir) if gains_dir is not None else results.path)
 
 
@@ -119,23 +135,21 @@ def simulate_mission(loaded: LoadedMission, progress: bool | None = False,
     SimulationDiverged (exit 3) with what ran; Ctrl-C raises KeyboardInterrupt at once."""
     from sms_cli.sim.engine import Simulation
 
-    sm = _prepared(loaded)
-    result = Simulation(sm, loaded.mission.simulation, None, progress, results_dir=gains_dir,
-                        mission_dir=loaded.path.parent).run()
-    section = _section(result, _base(loaded), {})
+    sm, spec, plans = _prepared(loaded)
+    result = Simulation(sm, spec, None, progress, results_dir=gains_dir, mission_dir=loaded.path.parent).run()
+    section = _section(result, _base(loaded), {}, plans)
     if result.status == "diverged":
         raise SimulationDiverged(_diverged_message(result, ""), section, result)
     return section, result
 
 
-def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path,
+def _simulate(loaded: LoadedMission, sm, spec, plans, results: ResultsDir, mcap_path: Path,
               progress: bool | None, gains_dir: Path) -> tuple[dict, SimResult]:
     from sms_cli.model.summary import model_summary
     from sms_cli.sim.engine import Simulation
     from sms_cli.sim.recorder import McapRecorder
     from sms_cli.sim.timing import TIMING_METADATA, timing_metadata
 
-    spec = loaded.mission.simulation
     summary = model_summary(sm)
     timing = timing_metadata(spec)
     rec = McapRecorder(mcap_path, mission_text=loaded.text, mission_name=loaded.mission.name, model_summary=summary,
@@ -156,7 +170,7 @@ def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path,
         with rec:  # once recording, a signal is held until the outputs are written
             result = simulation.run()
             rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
-            section = _write_outputs(results, result, sm, spec, mcap_path, base)
+            section = _write_outputs(results, result, sm, spec, mcap_path, base, plans)
     except KeyboardInterrupt:
         if result is None:  # before the first sample (or a second signal): no trace to write
             results.update("simulate", {**base, "status": "interrupted", "t_end_s": rec.sim_time, "steps": rec.steps,
@@ -176,13 +190,14 @@ def _simulate(loaded: LoadedMission, sm, results: ResultsDir, mcap_path: Path,
     return section, result
 
 
-def _write_outputs(results: ResultsDir, result, sm, spec, mcap_path: Path, base: dict) -> dict:
+def _write_outputs(results: ResultsDir, result, sm, spec, mcap_path: Path, base: dict, plans=()) -> dict:
     """The CSV, the plots and the ``simulate`` section of a run (whole, or what ran of it)."""
     from sms_cli.sim.plots import plot_simulation
 
     write_text_atomic(results.file("simulation.csv"), _trace_csv(result.trace, sm))
     plots = plot_simulation(result.trace, sm, [p.name for p in spec.phases], results.path)
-    section = _section(result, base, {"mcap": str(mcap_path), "csv": "simulation.csv", "plots": [p.name for p in plots]})
+    section = _section(result, base, {"mcap": str(mcap_path), "csv": "simulation.csv", "plots": [p.name for p in plots]},
+                       plans)
     results.update("simulate", section)
     return section
 

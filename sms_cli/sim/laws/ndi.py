@@ -21,7 +21,11 @@ Commands v (actuator accelerations, rad/s² or m/s²): arm joints v = q̈_d + kp
 ε = q_d − q (gains from ``gains.yaml`` of ``sms synthesize`` or the mission); wheels hold the base
 attitude: ω_des = ω_ref − k_att θ_e (θ_e the rotation vector of q_ref⁻¹ q, base frame), the wheel
 rates that move the base rate to ω_des at constant angular momentum, q̇_rd = q̇_r − M_ωr⁺ M_ωω
-(ω_des − ω0), and v_r = kv (q̇_rd − q̇_r).
+(ω_des − ω0), and v_r = q̈_rd + kv (q̇_rd − q̇_r), with the feedforward q̈_rd the wheel accelerations
+that keep ω̇0 = 0 under the commanded arm acceleration (the derivative of the (3.66) reference;
+``wheel_feedforward: false`` leaves it out). Without it the wheel-rate error lags the arm by
+|q̈_rd|/kv, and the base attitude error is bounded by a_d/(kv k_att), a_d the peak base angular
+acceleration the wheels must cancel (``sms_cli.sim.authority`` reports it per move).
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ class NdiObserver:
     """Combined wheel + arm law: returns actuator torques (wheels first, then arm joints)."""
 
     def __init__(self, sm: SystemModel, kp: np.ndarray, kv: np.ndarray, L: np.ndarray, attitude_gain: float,
-                 period: float):
+                 period: float, wheel_feedforward: bool = True):
         self.sm = sm
         self.ix, self.names, _ = model_index(sm)
         self.K_f, self.C_f = flexible_stiffness(sm)
@@ -52,6 +56,7 @@ class NdiObserver:
         if self.L.shape != (n_e, 3):
             raise ValueError(f"observer gain L must be {n_e}×3 for x = [f; ω0; ḟ], got {self.L.shape}")
         self.k_att = float(attitude_gain)
+        self.wheel_feedforward = bool(wheel_feedforward)
         self.T = float(period)
         self.x_hat = np.zeros(n_e)
         self.u = np.concatenate([self.ix.base_linear, self.ix.base_angular, self.ix.flexible])
@@ -69,6 +74,11 @@ class NdiObserver:
         self._q_act_idx = np.array([a.q_index for a in sm.arm], dtype=int)
         self.saturated = False
         self._started = False
+        self.wheel_rate_ref = np.zeros(self.n_r)  # desired wheel rates of the last control period (rad/s)
+
+    def model_changed(self) -> None:
+        """A payload was attached or released: the observer's discretisation is rebuilt at the next period."""
+        self._disc = None
 
     def reset(self) -> None:
         self.x_hat[:] = 0.0
@@ -159,8 +169,20 @@ class NdiObserver:
                 self._wheel_pinv = np.linalg.pinv(M[self._ix_wr])
             dq_r = -self._wheel_pinv @ (M[self._ix_ww] @ (w_des - s.omega))
             v_cmd[: self.n_r] = self.kv[: self.n_r] * dq_r
+            if self.wheel_feedforward:
+                v_cmd[: self.n_r] += self._wheel_feedforward(sol, v_cmd[self.n_r:])
+            self.wheel_rate_ref = s.v[a[: self.n_r]] + dq_r  # q̇_rd of the law, for Kraiem 2022 (3.67)
         self._M, self._y, self._q_act = M, s.omega, s.q[self._q_act_idx]
         return self._saturation_aware(M_dia, n_term, v_cmd)
+
+    def _wheel_feedforward(self, sol: np.ndarray, v_arm: np.ndarray) -> np.ndarray:
+        """Wheel accelerations q̈_rd that keep the base from rotating (ω̇0 = 0) while the arm accelerates at
+        ``v_arm``: the derivative of the wheel-rate reference of Kraiem 2022 (3.66), from the unactuated rows
+        ẍ_u = −M_uu⁻¹ (M_ua q̈_a + r_u) (``sol`` = M_uu⁻¹ [M_ua, r_u]), least-norm over the wheels."""
+        nr = self.n_r
+        w = slice(3, 6)  # u = [base linear, base angular, flexible]
+        G = sol[w, :nr]
+        return -np.linalg.pinv(G) @ (sol[w, nr:-1] @ v_arm + sol[w, -1])
 
     def _saturation_aware(self, M_dia: np.ndarray, n_term: np.ndarray, v_cmd: np.ndarray) -> np.ndarray:
         """τ = M◇ v + n, except that wheel torques are first clipped to their limits and the arm torques
@@ -223,6 +245,6 @@ def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_di
         L = L if L is not None else g.observer.L
     try:
         return NdiObserver(sm, np.asarray(kp, float), np.asarray(kv, float), np.asarray(L, float),
-                           spec.attitude_gain, period)
+                           spec.attitude_gain, period, spec.wheel_feedforward)
     except ValueError as exc:
         raise InputError(problems=[Problem(str(exc), field="simulation.ndi")]) from None
