@@ -63,7 +63,7 @@ for m in "${MISSIONS[@]}"; do
 done
 # Shipped campaigns (sms campaign, then sms check on the campaign's figures). A campaign whose file
 # documents a thesis result that does not reproduce is expected to fail exactly those requirements.
-CAMPAIGNS=(campaign_caldera_slew campaign_pulsar_dispersions campaign_astrobee_body_mass campaign_astrobee_link_mass campaign_astrobee_ee_mass)
+CAMPAIGNS=(campaign_caldera_slew campaign_pulsar_dispersions campaign_astrobee_body_mass campaign_astrobee_link_mass campaign_astrobee_ee_mass campaign_ruggiero_laws)
 if [ "$UPDATE" -eq 0 ]; then
   for c in "${CAMPAIGNS[@]}"; do
     echo "=== $c"
