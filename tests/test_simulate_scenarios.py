@@ -95,8 +95,10 @@ def test_recording_reads_back(caldera, tmp_path):
 def test_diverging_simulation_exits_3_and_keeps_the_recording(tmp_path):
     from mcap.reader import make_reader
 
-    text = (MISSIONS / "caldera_s1_slew.yaml").read_text().replace(
-        "attitude: {law: smc, k: 0.08, c: 0.01, mu: 20}",
+    text = (MISSIONS / "caldera_s1_slew.yaml").read_text()
+    assert "attitude: {law: smc, k: 0.08, c: 0.05, mu: 100}" in text
+    text = text.replace(
+        "attitude: {law: smc, k: 0.08, c: 0.05, mu: 100}",
         "attitude_actuator: thrusters\n  attitude: {law: quaternion_pd, kp: 1.0e+9, kd: 1.0e+9}")  # unsaturated, unstable when sampled
     text = text.replace("extends: caldera_smallsat.yaml", f"extends: {MISSIONS / 'caldera_smallsat.yaml'}")
     (tmp_path / "m.yaml").write_text(text)

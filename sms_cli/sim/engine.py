@@ -453,6 +453,10 @@ class Simulation:
         tr.joint_torque.append(np.asarray(tau_m, float).copy())
         tr.saturated.append(sat)
         tr.base_torque.append(self._base_torque.copy())
+        if not self._fixed:  # base displacement and reaction force (sms_cli/sim/base_motion.py)
+            from sms_cli.sim.base_motion import base_kinematics
+
+            tr.base_motion.append(base_kinematics(sm, s.q, s.v))
         if sm.arm:  # Kraiem 2022 (3.67) rate tracking
             tr.joint_rate_ref.append(np.array(arm_ref.qd, float))
             tr.joint_rate.append(s.v[sm.idx.arm].copy())

@@ -27,6 +27,7 @@ class Trace:
     base_reaction: list[np.ndarray] = field(default_factory=list)  # [f; n] base frame, nan when the base is not held
     base_torque: list[np.ndarray] = field(default_factory=list)  # attitude-law torque on the base (N m, base frame)
     segment: list[int] = field(default_factory=list)  # bumps when a payload is attached/released or the base is held
+    base_motion: list[np.ndarray] = field(default_factory=list)  # [base position; base-body momentum], world (base_motion.py)
     # Kraiem 2022 (3.67) rate tracking (when the model has an arm): desired and actual joint rates; the
     # desired wheel rates of the NDI law (its attitude hold: the rates that bring the base to ω_des)
     joint_rate_ref: list[np.ndarray] = field(default_factory=list)
@@ -49,6 +50,7 @@ class Trace:
             "base_reaction": np.array(self.base_reaction) if self.base_reaction else np.zeros((len(self.t), 6)),
             "segment": np.array(self.segment, dtype=int),
             "base_torque": np.array(self.base_torque) if self.base_torque else np.zeros((len(self.t), 3)),
+            **({"base_motion": np.array(self.base_motion)} if self.t and len(self.base_motion) == len(self.t) else {}),
             **{k: np.array(getattr(self, k)) for k in ("joint_rate_ref", "joint_rate", "wheel_rate_ref")
                if len(getattr(self, k)) == len(self.t) and self.t},
             "joint_stop_time": stack(self.joint_stop_time, 0), "joint_stop_penetration": stack(self.joint_stop_penetration, 0),
@@ -105,6 +107,8 @@ def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_contro
     bt = a["base_torque"][mask]
     out["attitude_torque_peak_Nm"] = float(np.max(np.abs(bt))) if bt.size else None
     out["saturation_time_s"] = float(np.count_nonzero(a["saturated"][mask]) * dt_control)
+    sat = a["saturated"][mask]  # the saturated run from the first tick (Caldera 2019: "maximum torque at the beginning")
+    out["saturated_from_start_s"] = float((np.argmin(sat) if not sat.all() else sat.size) * dt_control)
     br = a["base_reaction"][mask]
     if br.size and np.any(np.isfinite(br)):
         out["base_reaction_force_peak_N"] = float(np.nanmax(np.linalg.norm(br[:, :3], axis=1)))
@@ -114,6 +118,10 @@ def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_contro
     if "wheel_rate_ref" in a:  # a tracking measure of the arm's motion: none where the arm does not move
         out["wheel_rate_error_rel_max"] = (relative_rate_error(a["wheel_rate_ref"][mask], a["wheel_speed"][mask])
                                            if out.get("joint_rate_error_rel_max") is not None else None)
+    if "base_motion" in a:  # free-floating Python-loop runs: base displacement and arm reaction force
+        from sms_cli.sim.base_motion import base_motion_metrics
+
+        out.update(base_motion_metrics(a["t"], a["base_motion"], mask))
     mp = a["modal_peak"][mask]
     out["modal_amplitude_peak"] = float(np.max(mp)) if mp.size else None
     out.update(joint_stop_metrics(a, mask, arm_names))
