@@ -56,3 +56,23 @@ def sm_sensed(sm, t, st):
 @pytest.fixture(scope="module")
 def arm3():
     return compile_path(DATA / "arm3.yaml")
+
+
+def assert_tree_close(a, b, path: str = "", rel: float = 1e-9, abs_: float = 2e-9) -> None:
+    """Equal JSON trees (dicts, lists, numbers, strings): numbers to ``rel`` relative or ``abs_`` absolute
+    (two engines differ by round-off; /tf poses are integer counts of 1e-9, so the last count may flip);
+    ``path`` names the first difference."""
+    import pytest
+
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), path
+        for k in a:
+            assert_tree_close(a[k], b[k], f"{path}.{k}", rel, abs_)
+    elif isinstance(a, list):
+        assert len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_tree_close(x, y, f"{path}[{i}]", rel, abs_)
+    elif isinstance(a, float) or isinstance(b, float):
+        assert b == pytest.approx(a, rel=rel, abs=abs_), path
+    else:
+        assert a == b, path

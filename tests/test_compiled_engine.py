@@ -20,6 +20,8 @@ import pinocchio as pin
 import pytest
 from mcap.reader import make_reader
 
+from conftest import assert_tree_close
+
 from sms_cli.errors import InputError
 from sms_cli.mission.load import load_mission
 from sms_cli.model import compile_system
@@ -159,30 +161,13 @@ def _messages(mcap: Path) -> dict[str, list]:
     return out
 
 
-def _close(a, b, path=""):
-    """Equal JSON trees, numbers to 1e-9 relative (the engines differ by round-off) or 2e-9 absolute
-    (/tf poses are written as integer counts of 1e-9, so round-off can flip the last count)."""
-    if isinstance(a, dict):
-        assert a.keys() == b.keys(), path
-        for k in a:
-            _close(a[k], b[k], f"{path}.{k}")
-    elif isinstance(a, list):
-        assert len(a) == len(b), path
-        for i, (x, y) in enumerate(zip(a, b)):
-            _close(x, y, f"{path}[{i}]")
-    elif isinstance(a, float) or isinstance(b, float):
-        assert b == pytest.approx(a, rel=1e-9, abs=2e-9), path
-    else:
-        assert a == b, path
-
-
 def _compare_runs(tmp_path, text_of):
     (py, py_dir), (cc, cc_dir) = (_run(tmp_path, text_of(e), e) for e in ("python", "compiled"))
     assert py["timing"]["engine"] == "python" and cc["timing"]["engine"] == "compiled"
     assert (py["status"], py["steps"]) == (cc["status"], cc["steps"])
     assert cc["t_end_s"] == py["t_end_s"]
-    _close(py["overall"], cc["overall"], "overall")
-    _close(py["phases"], cc["phases"], "phases")
+    assert_tree_close(py["overall"], cc["overall"], "overall")
+    assert_tree_close(py["phases"], cc["phases"], "phases")
     for k, x in py["conservation"].items():  # drifts are round-off on both sides: compare magnitudes
         y = cc["conservation"][k]
         if k.endswith("_abs") or k.endswith("_rel"):
@@ -197,7 +182,7 @@ def _compare_runs(tmp_path, text_of):
             assert [m for _, m in a[topic]] == [m for _, m in b[topic]], topic
             continue
         for (_, x), (_, y) in zip(a[topic], b[topic]):
-            _close(x, y, topic)
+            assert_tree_close(x, y, topic)
     return py, cc, a
 
 

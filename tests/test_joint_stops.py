@@ -20,6 +20,8 @@ import pinocchio as pin
 import pytest
 from mcap.reader import make_reader
 
+from conftest import assert_tree_close
+
 from sms_cli.dynamics.integrator import State
 from sms_cli.dynamics.joint_stops import JointStops, PinocchioPlant, complementarity, stop_table
 from sms_cli.mission.load import load_mission
@@ -305,32 +307,17 @@ def test_a_run_reports_the_time_the_recording_shows_on_the_stop(drive_runs):
     assert drift["linear_momentum_drift_rel"] <= 1e-10 and drift["angular_momentum_drift_rel"] <= 1e-10
 
 
-def _close(a, b, path=""):
-    if isinstance(a, dict):
-        assert a.keys() == b.keys(), path
-        for k in a:
-            _close(a[k], b[k], f"{path}.{k}")
-    elif isinstance(a, list):
-        assert len(a) == len(b), path
-        for i, (x, y) in enumerate(zip(a, b)):
-            _close(x, y, f"{path}[{i}]")
-    elif isinstance(a, float) or isinstance(b, float):
-        assert b == pytest.approx(a, rel=1e-9, abs=1e-9), path
-    else:
-        assert a == b, path
-
-
 def test_both_plant_engines_give_the_same_run(drive_runs):
     """Pinocchio (engine: python) and the compiled plant (auto): the same metrics, stop events and
     joint trajectories, to 1e-9."""
     (py, a), (cc, b) = drive_runs["python"], drive_runs["auto"]
     assert py["timing"]["engine"] == "python" and cc["timing"]["engine"] == "python, compiled plant"
     assert py["overall"]["joint_stop_time_s"] > 0
-    _close(py["overall"], cc["overall"], "overall")
-    _close(py["phases"], cc["phases"], "phases")
+    assert_tree_close(py["overall"], cc["overall"], "overall", abs_=1e-9)
+    assert_tree_close(py["phases"], cc["phases"], "phases", abs_=1e-9)
     for topic in ("/events", "/joints/position", "/joints/rate", "/momentum"):
         assert [t for t, _ in a[topic]] == [t for t, _ in b[topic]], topic
-        _close([m for _, m in a[topic]], [m for _, m in b[topic]], topic)
+        assert_tree_close([m for _, m in a[topic]], [m for _, m in b[topic]], topic, abs_=1e-9)
 
 
 def test_the_backstepping_slew_keeps_the_distal_joint_in_range(tmp_path):

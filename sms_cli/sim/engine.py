@@ -453,7 +453,7 @@ class Simulation:
         tr.joint_torque.append(np.asarray(tau_m, float).copy())
         tr.saturated.append(sat)
         tr.base_torque.append(self._base_torque.copy())
-        if not self._fixed:  # base displacement and reaction force (sms_cli/sim/base_motion.py)
+        if sm.arm and not self._fixed:  # the arm's push on the free base: displacement, force (base_motion.py)
             from sms_cli.sim.base_motion import base_kinematics
 
             tr.base_motion.append(base_kinematics(sm, s.q, s.v))

@@ -118,7 +118,7 @@ def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_contro
     if "wheel_rate_ref" in a:  # a tracking measure of the arm's motion: none where the arm does not move
         out["wheel_rate_error_rel_max"] = (relative_rate_error(a["wheel_rate_ref"][mask], a["wheel_speed"][mask])
                                            if out.get("joint_rate_error_rel_max") is not None else None)
-    if "base_motion" in a:  # free-floating Python-loop runs: base displacement and arm reaction force
+    if "base_motion" in a:  # free-floating runs of an arm: base displacement and the arm's reaction force
         from sms_cli.sim.base_motion import base_motion_metrics
 
         out.update(base_motion_metrics(a["t"], a["base_motion"], mask))
