@@ -248,3 +248,31 @@ def test_inspect_says_a_run_that_hit_a_joint_stop_cannot_be_replayed(tmp_path):
 def _events(mcap: Path) -> list[bytes]:
     with open(mcap, "rb") as f:
         return [m.data for _, _, m in make_reader(f).iter_messages(topics=["/events"])]
+
+
+def test_held_base_reaction_recorded_is_the_one_of_the_recorded_torques(tmp_path):
+    """/base/reaction of a held-base phase (Chevallard 2019's deployment) equals the support wrench
+    recomputed from the recorded state and joint torques (it once ignored the torques)."""
+    mission = tmp_path / "held.yaml"
+    mission.write_text(f"extends: {ROOT / 'missions' / 'chevallard_deploy_track.yaml'}\n"
+                       "simulation:\n  phases:\n    - name: deployment\n      kind: deploy\n      base_mode: fixed\n"
+                       "      duration: 6 s\n      waypoints: [{at: 5 s, joints: {joint_2: 30 deg}}]\n")
+    sm = compile_system(load_mission(mission))
+    _, topics = _read(_record(mission, tmp_path))
+    arm = [a.name for a in sm.arm]
+    q_arm, v_arm = _column(topics, "/joints/position", arm), _column(topics, "/joints/rate", arm)
+    tau_m = _column(topics, "/joints/torque", arm)
+    reaction = _column(topics, "/base/reaction", ["fx", "fy", "fz", "nx", "ny", "nz"])
+    at = {round(t, 9): k for k, t in enumerate(topics["/joints/position"][0])}
+    rows = [at[round(t, 9)] for t in topics["/base/reaction"][0]]  # the t = 0 sample precedes the held phase
+    assert len(rows) == q_arm.shape[0] - 1 > 100
+    worst, scale = 0.0, 0.0
+    for i, k in enumerate(rows):
+        q, v = sm.q0.copy(), np.zeros(sm.nv)
+        q[[a.q_index for a in sm.arm]], v[sm.idx.arm] = q_arm[k], v_arm[k]
+        tau = np.zeros(sm.nv)
+        tau[sm.idx.arm] = tau_m[k]
+        vd, ed = sm.forward_dynamics_fixed_base(q, v, sm.eta0, sm.etadot0, tau)
+        expected = sm.base_reaction(q, v, sm.eta0, sm.etadot0, vd, ed)
+        worst, scale = max(worst, float(np.max(np.abs(reaction[i] - expected)))), max(scale, float(np.max(np.abs(expected))))
+    assert scale > 1e-3 and worst <= 1e-9 * scale

@@ -153,7 +153,6 @@ class Simulation:
         self.total_time = sum(p.duration for p in spec.phases)
         self.progress = Progress(self.total_time, progress)
         self.arm_names = [a.name for a in sm.arm]
-        self._tau = np.zeros(sm.nv)
         self._fixed = False
         self._segment = 0
         self._base_torque = np.zeros(3)
@@ -225,12 +224,21 @@ class Simulation:
         """Queue the sample at t (reserved with ``recorder.take``); written in blocks by the buffer. The
         torques and ``base_wrench`` are those applied over the plant step ending at t (``sms_cli.sim.timing``)."""
         p, k, _ = self._momentum(t, s)
-        reaction = None
-        if self._fixed:
-            vd, ed = self.sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, self._tau)
-            reaction = self.sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
+        reaction = self._held_base_reaction(s, tau_w, tau_m) if self._fixed else None
         self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction,
                          base_wrench if self._record_wrench else None)
+
+    def _held_base_reaction(self, s: State, tau_w, tau_m) -> np.ndarray:
+        """Wrench [f; n] (base frame) the support applies to hold the base while the wheels and the arm
+        apply ``tau_w`` and ``tau_m`` at state ``s``."""
+        sm = self.sm
+        tau = np.zeros(sm.nv)
+        if sm.wheels:
+            tau[sm.idx.wheels] = tau_w
+        if sm.arm:
+            tau[sm.idx.arm] = tau_m
+        vd, ed = sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, tau)
+        return sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed)
 
     def _event(self, t: float, name: str, detail: dict, level: str = "info") -> None:
         """An /events record, after the samples queued before it."""
@@ -469,10 +477,7 @@ class Simulation:
         tr.momentum.append(np.concatenate([p, k_origin]))
         tr.energy.append(sm.energy(s.q, s.v, s.eta, s.etadot))
         if self._fixed:
-            tau = np.zeros(sm.nv)
-            tau[sm.idx.arm] = tau_m
-            vd, ed = sm.forward_dynamics_fixed_base(s.q, s.v, s.eta, s.etadot, tau)
-            tr.base_reaction.append(sm.base_reaction(s.q, s.v, s.eta, s.etadot, vd, ed))
+            tr.base_reaction.append(self._held_base_reaction(s, tau_w, tau_m))
         else:
             tr.base_reaction.append(np.full(6, np.nan))
 
