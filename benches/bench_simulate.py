@@ -13,6 +13,8 @@ Usage: python benches/bench_simulate.py [mission.yaml ...] [--no-record]
 
 from __future__ import annotations
 
+import atexit
+import shutil
 import sys
 import tempfile
 import time
@@ -29,7 +31,8 @@ from sms_cli.mission.load import load_mission  # noqa: E402
 from sms_cli.model import compile_system  # noqa: E402
 from sms_cli.model.summary import model_summary  # noqa: E402
 from sms_cli.sim.recorder import McapRecorder  # noqa: E402
-from sms_cli.sim.stage import versions  # noqa: E402
+from sms_cli.sim.stage import planned_simulation, versions  # noqa: E402
+from sms_cli.synthesis.stage import run_synthesis  # noqa: E402
 
 
 class Timer:
@@ -52,11 +55,27 @@ class Timer:
         return timed
 
 
+GAINS = Path(tempfile.mkdtemp(prefix="sms_bench_gains_"))
+atexit.register(shutil.rmtree, GAINS, True)
+
+
+def gains_for(loaded, path: Path) -> Path | None:
+    """The folder holding the mission's gains.yaml when its simulation reads synthesized gains (NDI,
+    attitude: from_gains): synthesized once here (not timed), as `sms run` does."""
+    spec = loaded.mission.simulation
+    if loaded.mission.synthesis is None or not (spec.ndi is not None or spec.attitude == "from_gains"):
+        return None
+    out = GAINS / path.stem
+    if not (out / "gains.yaml").exists():
+        run_synthesis(loaded, out, plots=False)
+    return out
+
+
 def bench(path: Path, record: bool) -> dict:
     loaded = load_mission(path)
     sm = compile_system(loaded)
-    spec = loaded.mission.simulation
-    results_dir = ROOT / "results" / "ci" / path.stem  # gains.yaml of a previous `sms run`, if any
+    spec, _ = planned_simulation(sm, loaded)  # phases of duration 'auto' sized as `sms simulate` does
+    results_dir = gains_for(loaded, path)
     timer = Timer()
     orig_step = engine.rkmk4_step
     engine.rkmk4_step = timer.wrap("plant", orig_step)
@@ -80,8 +99,7 @@ def bench(path: Path, record: bool) -> dict:
                                    record_rate_hz=spec.record_rate)
                 links = list(sm.link_parents)
                 rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
-            sim = cls(sm, spec, rec, False, results_dir=results_dir if results_dir.exists() else None,
-                      mission_dir=path.parent)
+            sim = cls(sm, spec, rec, False, results_dir=results_dir, mission_dir=path.parent)
             sim.sensors.measure = timer.wrap("controller", sim.sensors.measure)
             w0, c0 = time.perf_counter(), time.process_time()
             if rec is not None:
@@ -104,11 +122,16 @@ def bench(path: Path, record: bool) -> dict:
             "cpu_us": 1e6 * cpu / n, "rtf_cpu": res.t_end / cpu, "rtf_wall": res.t_end / wall, **split}
 
 
+def _simulates(mission) -> bool:
+    """A mission with a simulation that is not a campaign definition (campaigns run many missions)."""
+    return mission.simulation is not None and getattr(mission, "campaign", None) is None
+
+
 def main() -> None:
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     record = "--no-record" not in sys.argv
     paths = [Path(a) for a in args] or sorted(p for p in (ROOT / "missions").glob("*.yaml")
-                                              if load_mission(p).mission.simulation is not None)
+                                              if _simulates(load_mission(p).mission))
     print(f"recording {'on' if record else 'off'}; µs per plant step (CPU unless noted); RTF = simulated / elapsed time")
     head = f"{'mission':<28}{'engine':>10}{'steps':>7}{'dt':>7}{'wall':>8}{'cpu':>8}{'RTF cpu':>9}{'RTF wall':>9}" \
            f"{'plant':>8}{'control':>9}{'record':>8}{'metrics':>9}{'other':>8}"
