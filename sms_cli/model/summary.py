@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from sms_cli.dynamics.locked import format_locked, locked_summary
 from sms_cli.mission.load import load_mission
 from sms_cli.model.compiler import compile_system
 from sms_cli.model.modal import coupled_frequencies
@@ -47,6 +48,7 @@ def model_summary(sm: SystemModel) -> dict[str, Any]:
                     "max_torque_Nm": w.max_torque, "max_speed_rad_s": w.max_speed,
                     "initial_speed_rad_s": w.initial_speed} for w in sm.wheels],
         "wheel_momentum_capacity": wheel_momentum_capacity(sm),
+        "locked": locked_summary(sm),  # locked inertia and Λ at q0 (sms_cli.dynamics.locked)
         "appendages": [{"name": a.name, "frame": sm.model.frames[a.frame_id].name,
                         "clamped_frequencies_hz": a.omega / (2 * math.pi), "damping": a.zeta} for a in sm.appendages],
         "springs": [{"joint": s.joint, "stiffness": s.stiffness, "damping": s.damping} for s in sm.springs],
@@ -113,6 +115,7 @@ def format_summary(s: dict[str, Any]) -> str:
                          f" {w['max_speed_rad_s'] * 60 / (2 * math.pi):<12.5g} {cap['per_wheel_Nms'][w['name']]:.4g}")
         ax = cap["along_base_axes_Nms"]
         lines.append(f"          momentum capacity along base x/y/z: {ax['x']:.4g} / {ax['y']:.4g} / {ax['z']:.4g} N m s")
+        lines.extend(format_locked(s.get("locked")))
     for a in s["appendages"]:
         f = ", ".join(f"{x:.4g}" for x in a["clamped_frequencies_hz"])
         lines.append(f"modes     {a['name']} at {a['frame']}: clamped {f} Hz (ζ " + ", ".join(f"{z:.3g}" for z in a["damping"]) + ")")

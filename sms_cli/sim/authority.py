@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from sms_cli.dynamics.locked import reduced_coupling
 from sms_cli.model.system import SystemModel
 from sms_cli.sim.references import JointProfile, quintic
 
@@ -47,12 +48,12 @@ def _base_rows_solve(sm: SystemModel, H: np.ndarray, rhs6: np.ndarray, x: np.nda
     # linear rows: m I a_lin + H_l,ang·0 + H_l,w x_w = rhs_l ; wheels are balanced (H_l,w = 0 within round-off)
     A_ll = H[np.ix_(lin, lin)]
     A_lw = H[np.ix_(lin, w)]
-    A_al, A_aw = H[np.ix_(ang, lin)], H[np.ix_(ang, w)]
+    A_al = H[np.ix_(ang, lin)]
     # reduce the linear unknowns out: x_l = A_ll⁻¹ (rhs_l − A_lw x_w)
     Ai_rl = np.linalg.solve(A_ll, rhs6[:3])
     Ai_lw = np.linalg.solve(A_ll, A_lw) if w.size else np.zeros((3, 0))
     if w.size:
-        red = A_aw - A_al @ Ai_lw
+        red = reduced_coupling(H, w)  # G J = A_aw − A_al Ai_lw (sms_cli.dynamics.locked)
         x[w] = np.linalg.pinv(red) @ (rhs6[3:] - A_al @ Ai_rl)
         x[lin] = Ai_rl - Ai_lw @ x[w]
     else:

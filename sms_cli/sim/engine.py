@@ -225,8 +225,13 @@ class Simulation:
         torques and ``base_wrench`` are those applied over the plant step ending at t (``sms_cli.sim.timing``)."""
         p, k, _ = self._momentum(t, s)
         reaction = self._held_base_reaction(s, tau_w, tau_m) if self._fixed else None
+        locked = None
+        if self.sm.wheels:  # /momentum/locked: μ at the sample's time (a payload may attach before the flush)
+            from sms_cli.dynamics.locked import locked_velocity
+
+            locked = locked_velocity(self.sm, s.q, s.v, s.etadot)
         self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction,
-                         base_wrench if self._record_wrench else None)
+                         base_wrench if self._record_wrench else None, locked=locked)
 
     def _held_base_reaction(self, s: State, tau_w, tau_m) -> np.ndarray:
         """Wrench [f; n] (base frame) the support applies to hold the base while the wheels and the arm

@@ -37,14 +37,16 @@ class RecordBuffer:
         return len(self._rows)
 
     def add(self, t: float, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p, k,
-            reaction=None, wrench=None) -> None:
+            reaction=None, wrench=None, locked=None) -> None:
         """One sample (copies of the arrays; ``reaction`` only while the base is held; ``wrench``, the
-        wrench applied to the base, in every sample of a run that records it or in none)."""
+        wrench applied to the base, in every sample of a run that records it or in none; ``locked``, the
+        locked velocity μ (3,) at the sample for a model with wheels, computed then: payloads as attached at its time)."""
         poses = None if self.kinematics is not None else self._pinocchio_poses(q)
         self._rows.append((t, q.copy(), v.copy(), eta.copy(), np.array(wheel_torque, float), np.array(joint_torque, float),
                            np.array(ref_quat, float), np.array(joint_ref, float), np.array(err_vec, float),
                            np.array(p, float), np.array(k, float), None if reaction is None else np.array(reaction, float),
-                           poses, None if wrench is None else np.array(wrench, float)))
+                           poses, None if wrench is None else np.array(wrench, float),
+                           None if locked is None else np.array(locked, float)))
         if len(self._rows) >= self.capacity:
             self.flush()
 
@@ -74,14 +76,17 @@ class RecordBuffer:
         reaction = None if cols[11][0] is None else np.array(cols[11])
         world = None if self.kinematics is not None else np.array(cols[12])
         wrench = None if cols[13][0] is None else np.array(cols[13])
-        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world, wrench)
+        locked = None if cols[14][0] is None else np.array(cols[14])
+        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world, wrench, locked=locked)
 
     def write(self, t, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p=None, k=None,
-              reaction=None, world=None, wrench=None) -> None:
+              reaction=None, world=None, wrench=None, locked=None) -> None:
         """Write n samples given as stacks (leading axis n) at once, bypassing the queue: the
         block path of both engines. p, k None: the rigid tree's momenta (compiled kinematics);
         ``world`` (n, n_links + 1, 7): world poses of the links and end effector when there are
-        no compiled kinematics; ``wrench`` (n, 6): the wrench applied to the base (``/base/wrench``)."""
+        no compiled kinematics; ``wrench`` (n, 6): the wrench applied to the base (``/base/wrench``);
+        ``locked`` (n, 3): μ on ``/momentum/locked`` (models with wheels), None: from the rigid (q, v) samples
+        (the compiled loop's; ``sms_cli.dynamics.locked.locked_velocities``)."""
         if self.kinematics is not None:
             world, rel, mom = self.kinematics(q, v)
             transforms, relative = rel[:, :-1], True
@@ -89,7 +94,12 @@ class RecordBuffer:
                 p, k = mom[:, 0:3], mom[:, 3:6]
         else:
             transforms, relative = world[:, :-1], False
+        if self.sm.wheels and locked is None:
+            from sms_cli.dynamics.locked import locked_velocities
+
+            locked = locked_velocities(self.sm, q, v)
         scalars = numeric_topics(self.sm, q=q, v=v, wheel_torque=wheel_torque, ref_quat=ref_quat, err_vec=err_vec,
                                  momentum_p=p, momentum_k=k, ee=world[:, -1, :3], joint_torque=joint_torque,
-                                 joint_ref=joint_ref, eta=eta, base_reaction=reaction, base_wrench=wrench)
+                                 joint_ref=joint_ref, eta=eta, base_reaction=reaction, base_wrench=wrench,
+                                 locked=locked if self.sm.wheels else None)
         self.rec.write_block(t, transforms=transforms, scalars=scalars, relative=relative)

@@ -15,12 +15,13 @@ from sms_cli.model.conventions import euler_zyx_from_quaternions
 
 
 def numeric_topics(sm, *, q, v, wheel_torque, ref_quat, err_vec, momentum_p, momentum_k, ee, joint_torque=None,
-                   joint_ref=None, eta=None, base_reaction=None, base_wrench=None) -> dict[str, dict]:
+                   joint_ref=None, eta=None, base_reaction=None, base_wrench=None, locked=None) -> dict[str, dict]:
     """topic → {field: value}: attitude (+ roll/pitch/yaw), its error and reference, base rate and
     position, end-effector position, momentum (p; k about the CoM), wheels, joints, modes, and the
     base reaction when the base is held (``base_reaction`` not None), and the wrench applied to the base
     by thrusters and disturbances (``base_wrench`` not None: a mission that has them), like the torques
-    the one applied over the plant step ending at the sample's time (``sms_cli.sim.timing``)."""
+    the one applied over the plant step ending at the sample's time (``sms_cli.sim.timing``); with wheels,
+    the locked velocity μ (``locked`` (3,), rad/s, base frame) and |μ| on ``/momentum/locked``."""
     rpy = np.degrees(euler_zyx_from_quaternions(q[..., 3:7]))
     out = {
         "/attitude": {"qx": q[..., 3], "qy": q[..., 4], "qz": q[..., 5], "qw": q[..., 6],
@@ -38,6 +39,9 @@ def numeric_topics(sm, *, q, v, wheel_torque, ref_quat, err_vec, momentum_p, mom
         vi = sm.idx.wheels
         out["/wheels/speed"] = {w.name: v[..., j] for w, j in zip(sm.wheels, vi)}
         out["/wheels/torque"] = {w.name: wheel_torque[..., i] for i, w in enumerate(sm.wheels)}
+        if locked is not None:  # μ = ω + Λθ̇ (rad/s, base frame; sms_cli.dynamics.locked, Vicariotto 2023 (4.5))
+            out["/momentum/locked"] = {"x": locked[..., 0], "y": locked[..., 1], "z": locked[..., 2],
+                                       "norm": np.linalg.norm(locked, axis=-1)}
     if sm.arm:
         out["/joints/position"] = {a.name: q[..., a.q_index] for a in sm.arm}
         out["/joints/rate"] = {a.name: v[..., j] for a, j in zip(sm.arm, sm.idx.arm)}
