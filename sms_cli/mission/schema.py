@@ -19,6 +19,7 @@ from sms_cli.check.schema import RequirementSpec
 from sms_cli.orbit.schema import BudgetSpec
 from sms_cli.sim.schema import SimulationSpec
 from sms_cli.synthesis.schema import SynthesisSpec
+from sms_cli.thrusters.schema import ThrustersSpec
 
 
 class Mission(StrictModel):
@@ -35,6 +36,10 @@ class Mission(StrictModel):
     springs: list[SpringSpec] = Field(default_factory=list)
     payloads: list[PayloadSpec] = Field(default_factory=list)
     initial: InitialState = Field(default_factory=InitialState)
+    thrusters: ThrustersSpec | None = Field(
+        None, description="the base's on/off thrusters (Vicariotto 2023 Table 3.1): a list or the 24-thruster cube, "
+                          "firing cycle, minimum impulse bit, quantisation, tank; used by attitude_actuator: "
+                          "thrusters and free-flying phases instead of the ideal torque source")
     budget: BudgetSpec | None = Field(
         None, description="orbital ΔV, propellant and burn-time budget (sms budget): orbit, propulsion, "
                           "spacecraft masses and a manoeuvre sequence (or several scenarios)")

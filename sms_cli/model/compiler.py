@@ -294,6 +294,9 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
             sm.attach_payload(p.name)
     _check_physical(sm, loaded, info, warnings)
     sm.warnings = list(warnings)
+    from sms_cli.thrusters.build import build_thrusters
+
+    sm.thrusters = build_thrusters(sm, loaded)
     return sm
 
 

@@ -75,6 +75,10 @@ def compile_summary(mission_path: Path, strict: bool = False) -> dict[str, Any]:
         moves = [p.as_dict() for p in planned_simulation(sm, loaded)[1]]
     out = model_summary(sm)
     out["mission_file"] = str(mission_path)
+    if sm.thrusters is not None:
+        from sms_cli.thrusters.capability import capability_report
+
+        out["thrusters"] = capability_report(sm.thrusters)
     if moves:
         out["moves"] = moves
         out["auto_duration"] = loaded.mission.simulation.auto_duration.model_dump()
@@ -131,6 +135,10 @@ def format_summary(s: dict[str, Any]) -> str:
         from sms_cli.sim.authority import format_moves
 
         lines.extend(format_moves(s["moves"], SimpleNamespace(**s["auto_duration"])))
+    if s.get("thrusters"):
+        from sms_cli.thrusters.capability import format_report
+
+        lines.extend(format_report(s["thrusters"]))
     if s.get("kinematics_only"):
         lines.append("model     KINEMATICS ONLY: placeholder inertias on " + ", ".join(s["kinematics_only"])
                      + " (dynamics stages refuse it)")

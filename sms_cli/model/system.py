@@ -152,6 +152,7 @@ class SystemModel:
     link_frames: dict[str, int] = field(default_factory=dict)  # the same links -> their BODY frame id (names may clash with joints)
     kinematics_only: list[str] = field(default_factory=list)  # links given a placeholder inertia (robot.kinematics_only)
     link_inertias: dict[str, pin.Inertia] = field(default_factory=dict)  # the same links -> own inertia, link frame
+    thrusters: object = None  # sms_cli.thrusters.layout.ThrusterSet of the mission's thrusters: section, or None
 
     def link_inertial(self, link: str) -> tuple[float, np.ndarray, np.ndarray]:
         """(mass kg, CoM (3,) m in the link frame, [ixx iyy izz ixy ixz iyz] kg m² about the CoM in the link

@@ -16,6 +16,10 @@ def run_compile(loaded, out: Path) -> dict[str, Any]:
     sm = compile_system(loaded)
     summary = _jsonable(model_summary(sm))
     summary["mission_file"] = str(loaded.path)
+    if sm.thrusters is not None:
+        from sms_cli.thrusters.capability import capability_report
+
+        summary["thrusters"] = _jsonable(capability_report(sm.thrusters))
     rd = ResultsDir(out)
     draw_robot(sm, rd.file("robot.png"))
     summary["artifacts"] = ["robot.png"]

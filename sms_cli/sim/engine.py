@@ -158,6 +158,15 @@ class Simulation:
         self._base_torque = np.zeros(3)
         self._mom_t, self._mom = None, None
         self._init_stops()
+        self.thr = None  # real thrusters (sms_cli.thrusters.drive) instead of the ideal torque source
+        if sm.thrusters is not None:
+            from sms_cli.sim.timing import uses_thrusters
+            from sms_cli.thrusters.drive import ThrusterDrive
+
+            if uses_thrusters(spec):
+                on_change = (lambda: self.plant.refresh_body(sm.base_joint_id)) if self.plant is not None else None
+                self.thr = ThrusterDrive(sm, sm.thrusters, on_change=on_change)
+        self._propellant: dict[int, list[float]] = {}  # phase index -> [used at its start, used at its end] (kg)
 
     # ------------------------------------------------------------------ helpers
     def _init_stops(self) -> None:
@@ -171,16 +180,25 @@ class Simulation:
         self.stops = JointStops(self.sm, self.spec.joint_stops.restitution) if enabled else None
         self._pin_plants = {False: PinocchioPlant(self.sm), True: PinocchioPlant(self.sm, fixed=True)}
 
-    def _stop_step(self, s: State, tau: np.ndarray, t: float, fixed: bool) -> State:
-        """One plant step under the stop law; its arrivals and releases go to /events."""
+    def _stop_step(self, s: State, tau: np.ndarray, t: float, fixed: bool, dt: float | None = None) -> State:
+        """One plant step (of dt, default the plant step) under the stop law; its arrivals and releases go to /events."""
         plant = self.plant if self.plant is not None and not fixed else self._pin_plants[fixed]
-        s = self.stops.step(plant, s, tau, self.dt, t)
+        s = self.stops.step(plant, s, tau, self.dt if dt is None else dt, t)
         if self.stops.events:
             if self.rec is not None:
                 for ev in self.stops.events:
                     self._event(*ev)
             self.stops.events.clear()
         return s
+
+    def _advance(self, s: State, tau: np.ndarray, h: float, t: float, fixed: bool) -> State:
+        """One plant step of length h (s) from time t under tau: the thrusters' pieces of a plant step."""
+        if self.stops is not None:
+            return self._stop_step(s, tau, t, fixed, h)
+        if self.plant is not None and not fixed:
+            return self.plant.step(s, tau, h)
+        fd = self.sm.forward_dynamics_fixed_base if fixed else self.sm.forward_dynamics
+        return rkmk4_step(self.sm.model, s, h, lambda q, v, e, ed: fd(q, v, e, ed, tau))
 
     def _accel(self, tau: np.ndarray, fixed: bool = False):
         fd = self.sm.forward_dynamics_fixed_base if fixed else self.sm.forward_dynamics
@@ -220,7 +238,7 @@ class Simulation:
         return self.sm.frame_pose(q, self.sm.ee_frame_id).translation
 
     # ------------------------------------------------------------------ recording
-    def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec, base_wrench) -> None:
+    def _record(self, t: float, s: State, att_ref, arm_ref, tau_w, tau_m, att_err_vec, base_wrench, initial=False) -> None:
         """Queue the sample at t (reserved with ``recorder.take``); written in blocks by the buffer. The
         torques and ``base_wrench`` are those applied over the plant step ending at t (``sms_cli.sim.timing``)."""
         p, k, _ = self._momentum(t, s)
@@ -230,8 +248,13 @@ class Simulation:
             from sms_cli.dynamics.locked import locked_velocity
 
             locked = locked_velocity(self.sm, s.q, s.v, s.etadot)
+        extra = None
+        if self.thr is not None:
+            from sms_cli.thrusters.topics import thruster_topics
+
+            extra = thruster_topics(self.thr, zero=initial)
         self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction,
-                         base_wrench if self._record_wrench else None, locked=locked)
+                         base_wrench if self._record_wrench else None, extra, locked=locked)
 
     def _held_base_reaction(self, s: State, tau_w, tau_m) -> np.ndarray:
         """Wrench [f; n] (base frame) the support applies to hold the base while the wheels and the arm
@@ -304,10 +327,12 @@ class Simulation:
             n_arm = len(q_arm_ref)
             self._record(t, s, AttitudeProfile(q_att_ref, None, "step", None).at(0.0),
                          ArmRef(q_arm_ref.copy(), np.zeros(n_arm), np.zeros(n_arm)), np.zeros(self.wheels.n),
-                         np.zeros(n_arm), np.zeros(3), np.zeros(6))
+                         np.zeros(n_arm), np.zeros(3), np.zeros(6), initial=True)
         try:
             for ip, phase in enumerate(spec.phases):
                 t_phase0 = t
+                if self.thr is not None:
+                    self._propellant[ip] = [self.thr.used, self.thr.used]
                 self._begin_phase(phase, t)
                 att = AttitudeProfile(q_att_ref, phase.attitude, phase.attitude_profile, phase.slew_time)
                 joints = JointProfile(q_arm_ref, self.arm_names, phase.waypoints, phase.joint_profile)
@@ -334,6 +359,9 @@ class Simulation:
                     else:
                         arm_ref = joints.at(tau_ph)
                     tau_w, tau_m, base_wrench, sat = self._control(phase, sensed, att_ref, arm_ref)
+                    if self.thr is not None:  # the law's wrench through allocation + modulation, not the ideal source
+                        sat = self.thr.command(t, base_wrench) or sat
+                        base_wrench = np.zeros(6)
                     err_vec = attitude_error(att_ref.quat, s.q[3:7])
                     self._trace(trace, t, ip, err_vec, arm_ref, s, tau_w, tau_m, sat, ee_err)
                     if self.wheels.n and (tick % 10 == 0):
@@ -358,7 +386,9 @@ class Simulation:
                                 tau[sm.idx.wheels] = self.wheels.speed_limited(tau_w, ws, self.dt) + self.wheels.friction_torque(ws)
                         else:
                             tau = tau_tick
-                        if self.stops is not None:
+                        if self.thr is not None:
+                            s = self.thr.step(s, t, self.dt, tau, lambda s_, tau_, h, t_, _f=fixed: self._advance(s_, tau_, h, t_, _f))
+                        elif self.stops is not None:
                             s = self._stop_step(s, tau, t, fixed)
                         elif self.plant is not None and not fixed:
                             s = self.plant.step(s, tau, self.dt)
@@ -368,7 +398,7 @@ class Simulation:
                         steps += 1
                         if rec_take is not None and rec_take(t):
                             self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]),
-                                         tau[:6])
+                                         tau[:6] + self.thr.delivered if self.thr is not None else tau[:6])
                     if self.stops is not None:  # this tick's time on stop and deepest penetration
                         trace.joint_stop_time[-1], trace.joint_stop_penetration[-1] = self.stops.interval(s)
                     self._check(s)
@@ -381,6 +411,8 @@ class Simulation:
                         else:
                             settled_since = None
                 phase_spans.append((ip, t_phase0, t))
+                if self.thr is not None:
+                    self._propellant[ip][1] = self.thr.used
                 q_att_ref = att.at(phase.duration).quat if phase.attitude is not None else q_att_ref
                 q_arm_ref = q_track if phase.end_effector is not None else joints.final
             self.progress.finish(t)
@@ -397,6 +429,8 @@ class Simulation:
             self.progress.close()
             if self.rec is not None:
                 self._buffer.flush()
+            if self.thr is not None and self._propellant:
+                self._propellant[max(self._propellant)][1] = self.thr.used
         wall = time.perf_counter() - wall0
         sensed = self.sensors.measure(t, s.q, s.v, s.eta, s.etadot) if status == "completed" else None
         if sensed is not None and trace.t:
@@ -488,7 +522,15 @@ class Simulation:
 
     def _result(self, status, why, t, steps, trace: Trace, spans, wall) -> SimResult:
         engine = "python" if self.plant is None else "python, compiled plant"
-        return build_result(self.spec, self.sm, status, why, t, steps, trace.arrays(), spans, wall, engine)
+        result = build_result(self.spec, self.sm, status, why, t, steps, trace.arrays(), spans, wall, engine)
+        if self.thr is not None:  # propellant per phase, per attitude law and overall (kg)
+            law = getattr(self.att_spec, "law", "attitude")
+            for summary, (ip, _, _) in zip(result.phases, spans):
+                used = self._propellant.get(ip, [0.0, 0.0])
+                summary["propellant_used_kg"] = used[1] - used[0]
+            result.overall["propellant_used_kg"] = self.thr.used
+            result.overall["propellant_used_by_law_kg"] = {law: self.thr.used}
+        return result
 
 
 def phase_event(phase: PhaseSpec) -> dict:

@@ -37,15 +37,16 @@ class RecordBuffer:
         return len(self._rows)
 
     def add(self, t: float, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p, k,
-            reaction=None, wrench=None, locked=None) -> None:
+            reaction=None, wrench=None, extra=None, locked=None) -> None:
         """One sample (copies of the arrays; ``reaction`` only while the base is held; ``wrench``, the
-        wrench applied to the base, in every sample of a run that records it or in none; ``locked``, the
+        wrench applied to the base, in every sample of a run that records it or in none; ``extra``, more
+        topics {topic: {field: value}} (the thrusters', ``sms_cli.thrusters.topics``), likewise; ``locked``, the
         locked velocity μ (3,) at the sample for a model with wheels, computed then: payloads as attached at its time)."""
         poses = None if self.kinematics is not None else self._pinocchio_poses(q)
         self._rows.append((t, q.copy(), v.copy(), eta.copy(), np.array(wheel_torque, float), np.array(joint_torque, float),
                            np.array(ref_quat, float), np.array(joint_ref, float), np.array(err_vec, float),
                            np.array(p, float), np.array(k, float), None if reaction is None else np.array(reaction, float),
-                           poses, None if wrench is None else np.array(wrench, float),
+                           poses, None if wrench is None else np.array(wrench, float), extra,
                            None if locked is None else np.array(locked, float)))
         if len(self._rows) >= self.capacity:
             self.flush()
@@ -76,11 +77,13 @@ class RecordBuffer:
         reaction = None if cols[11][0] is None else np.array(cols[11])
         world = None if self.kinematics is not None else np.array(cols[12])
         wrench = None if cols[13][0] is None else np.array(cols[13])
-        locked = None if cols[14][0] is None else np.array(cols[14])
-        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world, wrench, locked=locked)
+        extra = None if cols[14][0] is None else {topic: {f: np.array([e[topic][f] for e in cols[14]]) for f in fields}
+                                                  for topic, fields in cols[14][0].items()}
+        locked = None if cols[15][0] is None else np.array(cols[15])
+        self.write(t, q, v, eta, tw, tm, ref, jref, err, p, k, reaction, world, wrench, extra, locked)
 
     def write(self, t, q, v, eta, wheel_torque, joint_torque, ref_quat, joint_ref, err_vec, p=None, k=None,
-              reaction=None, world=None, wrench=None, locked=None) -> None:
+              reaction=None, world=None, wrench=None, extra=None, locked=None) -> None:
         """Write n samples given as stacks (leading axis n) at once, bypassing the queue: the
         block path of both engines. p, k None: the rigid tree's momenta (compiled kinematics);
         ``world`` (n, n_links + 1, 7): world poses of the links and end effector when there are
@@ -102,4 +105,6 @@ class RecordBuffer:
                                  momentum_p=p, momentum_k=k, ee=world[:, -1, :3], joint_torque=joint_torque,
                                  joint_ref=joint_ref, eta=eta, base_reaction=reaction, base_wrench=wrench,
                                  locked=locked if self.sm.wheels else None)
+        if extra:
+            scalars.update(extra)
         self.rec.write_block(t, transforms=transforms, scalars=scalars, relative=relative)

@@ -193,11 +193,15 @@ class SimulationSpec(StrictModel):
     attitude: AttitudeLawSpec | Literal["from_gains"] | None = Field(
         None, description="base attitude law, or 'from_gains': the law `sms synthesize` wrote into gains.yaml "
                           "(simulation.attitude block) in the results folder")
-    attitude_actuator: Literal["wheels", "thrusters"] = "wheels"
+    attitude_actuator: Literal["wheels", "thrusters"] = Field(
+        "wheels", description="what applies the attitude law's torque: the wheels, or thrusters; with a top-level "
+                              "thrusters: section the real thruster set (allocation, on/off firing, propellant), "
+                              "without one an ideal torque source")
     attitude_torque_limit: Torque | None = Field(
         None, gt=0, description="per-axis limit (N m, base frame) of the ideal attitude torque the thrusters apply "
                                 "(attitude_actuator: thrusters, or a free-flying phase): each component of the law's "
                                 "torque is clipped to ±limit, and a clipped tick counts in saturation_time_s; "
+                                "with a thrusters: section, the torque handed to the allocation is clipped; "
                                 "null: no limit")
     arm: ArmLawSpec | None = Field(None, description="manipulator joint law")
     resolved_rate: ResolvedRateSpec | None = Field(None, description="end-effector tracking (phases with end_effector)")

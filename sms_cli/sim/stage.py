@@ -151,7 +151,7 @@ def _simulate(loaded: LoadedMission, sm, spec, plans, results: ResultsDir, mcap_
     from sms_cli.sim.timing import TIMING_METADATA, timing_metadata
 
     summary = model_summary(sm)
-    timing = timing_metadata(spec)
+    timing = timing_metadata(spec, real_thrusters=sm.thrusters is not None)
     rec = McapRecorder(mcap_path, mission_text=loaded.text, mission_name=loaded.mission.name, model_summary=summary,
                        urdf_text=sm.urdf_text, versions=versions(), record_rate_hz=spec.record_rate,
                        metadata={TIMING_METADATA: timing})

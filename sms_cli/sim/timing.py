@@ -74,8 +74,9 @@ def records_base_wrench(spec) -> bool:
     return uses_thrusters(spec) or bool(spec.disturbances)
 
 
-def not_replayable_reasons(spec) -> list[str]:
-    """Why a recording of this simulation cannot be replayed from its own topics (empty: it can)."""
+def not_replayable_reasons(spec, real_thrusters: bool = False) -> list[str]:
+    """Why a recording of this simulation cannot be replayed from its own topics (empty: it can);
+    ``real_thrusters``: the mission's thrusters: section drives the base (sms_cli.thrusters)."""
     rate, r, dt = float(spec.control_rate), spec.record_rate, float(spec.dt)
     out = []
     every_step = r is None or (_multiple(float(r), rate) is not None and float(r) * dt >= 1.0 - _TOL)
@@ -90,14 +91,17 @@ def not_replayable_reasons(spec) -> list[str]:
     if spec.disturbances and not every_step:
         out.append("a disturbance (a pulse's start or end, an inertial-frame wrench turning with the base) changes the "
                    "wrench on the base within a control period: record every plant step (record_rate: null)")
+    if real_thrusters and uses_thrusters(spec):
+        out.append("real thrusters switch within plant steps and spend propellant (the base mass changes): /base/wrench "
+                   "holds each step's average wrench, not the firings")
     return out
 
 
-def timing_metadata(spec) -> dict[str, str]:
+def timing_metadata(spec, real_thrusters: bool = False) -> dict[str, str]:
     """The ``sms.timing`` metadata record of a recording of ``spec`` (a SimulationSpec): strings only."""
     rate, r, dt = float(spec.control_rate), spec.record_rate, float(spec.dt)
     period = 1.0 / rate
-    reasons = not_replayable_reasons(spec)
+    reasons = not_replayable_reasons(spec, real_thrusters)
     return {
         "version": TIMING_VERSION,
         "control_rate_hz": repr(rate),

@@ -53,3 +53,6 @@ def validate_simulation(sm, loaded) -> None:
                                             ".".join(map(str, key)), _hint(name, payloads, "payloads")))
     if problems:
         raise InputError(f"{loaded.path}: {len(problems)} problem(s) in the simulation section", problems)
+    from sms_cli.thrusters.check import check_thrusters
+
+    check_thrusters(sm, loaded)

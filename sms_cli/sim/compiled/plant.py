@@ -58,6 +58,19 @@ class CompiledPlant:
         T = flatten(self.sm.model)
         self._tree = (T.parent, T.kind, T.axis, T.place_R, T.place_p, T.inertia, T.leaf_IA, T.armature, T.idx_q, T.idx_v)
 
+    def refresh_body(self, joint_id: int) -> None:
+        """Re-read the inertia of one body (Pinocchio joint ``joint_id``; the base losing propellant) in
+        place: what ``refresh`` does for that body, without re-flattening the tree (a body whose inertia
+        ABA precomputes, a constant leaf, gets the full ``refresh``)."""
+        from sms_cli.sim.compiled.tree import spatial_inertia
+
+        i = joint_id - 1
+        if not np.isnan(self._tree[6][i, 0, 0]):
+            self.refresh()
+            return
+        Y = self.sm.model.inertias[joint_id]
+        self._tree[5][i] = spatial_inertia(Y.mass, Y.lever, Y.inertia)
+
     def step(self, s: State, tau: np.ndarray, dt: float, locked: np.ndarray | None = None) -> State:
         """The state after one RKMK4 step of dt (s) under the held generalized forces tau (nv), the
         joints ``locked`` (velocity indices; joint stops) held at zero acceleration."""

@@ -47,6 +47,7 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     """Why the compiled engine cannot run this mission (None when it can)."""
     from sms_cli.sim.compiled.tree import unsupported_reason as tree_reason
     from sms_cli.sim.laws.schema import MrpFeedbackSpec
+    from sms_cli.sim.timing import uses_thrusters
 
     checks = [
         (sm.n_modes > 0, "the model has flexible modes"),
@@ -59,6 +60,8 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0) for n in (spec.sensors.gyro, spec.sensors.attitude)),
          "the sensors are noisy"),
         (bool(spec.disturbances), "the mission has disturbances"),
+        (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
+         "the mission has real thrusters (thrusters:), which the Python loop models"),
         (any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed"),
         (any(p.attitude_profile != "step" for p in spec.phases), "a phase has a smooth attitude profile"),
         (any(p.attach or p.detach or p.waypoints or p.end_effector is not None for p in spec.phases),

@@ -1,0 +1,103 @@
+"""The thrusters in the simulation loop: one allocation + modulation per control tick, and the plant
+stepped piecewise between thruster switchings with the base mass updated as propellant is spent.
+
+Timing: the control period is a whole number k ≥ 1 of firing cycles (checked at compile,
+``sms_cli.thrusters.check``). At each control tick t0 the commanded wrench is allocated
+(``Allocator``) and modulated (``on_times``); that firing pattern repeats in each of the k cycles
+of the tick: thruster i is on at full force during [t0 + jT, t0 + jT + t_i). A plant step is cut at
+every switching instant inside it, so the plant sees each firing exactly, and each piece is
+integrated with the base body holding the mass at the piece's midpoint (a constant burn is then the
+rocket equation up to O((ṁh/m)³) per piece). When the tank is empty the thrusters deliver nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sms_cli.thrusters.allocation import Allocator
+from sms_cli.thrusters.layout import ThrusterSet
+from sms_cli.thrusters.modulation import on_times
+from sms_cli.thrusters.propellant import Tank
+
+
+class ThrusterDrive:
+    """State of the thruster set during a run (see the module docstring). Wrenches are [f; n] in the
+    base joint frame (N, N m); times in s; masses in kg."""
+
+    def __init__(self, sm, ts: ThrusterSet, on_change=None):
+        self.ts = ts
+        self.B = ts.B
+        self.allocator = Allocator(self.B, ts.max_force)
+        self.tank = Tank(sm, ts.tank_position, ts.propellant)
+        self.mdot = ts.mass_flow
+        self.on_change = on_change  # called after the model's base inertia changed (compiled plant refresh)
+        self.used = 0.0
+        self.t0 = 0.0
+        self.on = np.zeros(ts.n)  # on-times of the current pattern
+        self.thrust_cmd = np.zeros(ts.n)
+        self.commanded = np.zeros(6)
+        self.delivered = np.zeros(6)  # averaged over the last plant step
+        self.thrust_step = np.zeros(ts.n)  # per thruster, averaged over the last plant step
+
+    def command(self, t0: float, wrench: np.ndarray) -> bool:
+        """Allocate and modulate ``wrench`` for the tick starting at t0; True when it was out of reach."""
+        self.t0 = float(t0)
+        self.commanded = np.asarray(wrench, float).copy()
+        a = self.allocator.solve(self.commanded)
+        self.thrust_cmd = a.thrust
+        ts = self.ts
+        self.on = on_times(a.thrust, ts.max_force, ts.firing_cycle, ts.mib, ts.quantization)
+        return a.saturated
+
+    def _breaks(self, t: float, t1: float) -> list[float]:
+        T = self.ts.firing_cycle
+        j0 = int(np.floor((t - self.t0) / T + 1e-12))
+        pts = {t, t1}
+        for j in range(j0, j0 + int(np.ceil((t1 - t) / T)) + 2):
+            c = self.t0 + j * T
+            for x in (c, *(c + self.on[self.on > 0])):
+                if t < x < t1:
+                    pts.add(float(x))
+        return sorted(pts)
+
+    def _on_at(self, tm: float) -> np.ndarray:
+        T = self.ts.firing_cycle
+        phase = (tm - self.t0) % T
+        return phase < self.on
+
+    def step(self, s, t: float, dt: float, tau: np.ndarray, advance):
+        """The state after the plant step [t, t + dt] under the generalized forces ``tau`` (nv, without
+        the thrusters) plus the firings; ``advance(s, tau, h, t)`` is one plant step of length h."""
+        impulse = np.zeros(self.ts.n)  # N s per thruster over this step
+        pts = self._breaks(t, t + dt)
+        for a, b in zip(pts[:-1], pts[1:]):
+            h = b - a
+            if h <= 0:
+                continue
+            on = self._on_at(0.5 * (a + b)) if self.used < self.ts.propellant else np.zeros(self.ts.n, bool)
+            mdot = float(self.mdot[on].sum())
+            if mdot > 0 and self.used + mdot * h > self.ts.propellant:  # the tank empties in this piece
+                h_burn = (self.ts.propellant - self.used) / mdot
+                s = self._piece(s, a, h_burn, on, mdot, tau, advance, impulse)
+                self.used = self.ts.propellant
+                s = self._piece(s, a + h_burn, h - h_burn, np.zeros(self.ts.n, bool), 0.0, tau, advance, impulse)
+            else:
+                s = self._piece(s, a, h, on, mdot, tau, advance, impulse)
+        if self.tank.set_removed(self.used) and self.on_change is not None:
+            self.on_change()
+        self.thrust_step = impulse / dt
+        self.delivered = self.B @ self.thrust_step
+        return s
+
+    def _piece(self, s, a, h, on, mdot, tau, advance, impulse):
+        if h <= 0:
+            return s
+        if self.tank.set_removed(self.used + 0.5 * mdot * h) and self.on_change is not None:
+            self.on_change()
+        f = np.where(on, self.ts.max_force, 0.0)
+        tau_p = np.array(tau, float)
+        tau_p[:6] += self.B @ f
+        s = advance(s, tau_p, h, a)
+        self.used += mdot * h
+        impulse += f * h
+        return s
