@@ -62,6 +62,13 @@ def test_firing_cycle_must_divide_the_control_period(tmp_path):
     assert "control_rate" in out
 
 
+def test_unused_thrusters_are_a_compile_warning(tmp_path):
+    p = _write(tmp_path, "  size: 1.5 m\n", "simulation:\n  attitude_actuator: wheels\n")
+    r = run_cli("compile", p)
+    assert r.exit_code == 0, r.output
+    assert "no phase uses the thrusters" in r.stdout and re.search(r"bad.yaml:\d+", r.stdout), r.stdout
+
+
 def test_compile_reports_the_cube_capability():
     r = run_cli("compile", MISSION, "--json")
     assert r.exit_code == 0, r.output

@@ -25,6 +25,11 @@ def check_thrusters(sm, loaded) -> None:
             "allocation per control tick repeats its firing pattern in each cycle of the tick",
             where, "thrusters.firing_cycle",
             f"set simulation.control_rate to {1 / ts.firing_cycle:g} Hz (one cycle per tick) or a divisor of it"))
+    if not uses_thrusters(spec):  # reported by sms compile, but nothing fires them
+        sm.warnings.append(Problem(
+            "no phase uses the thrusters (the attitude law drives the wheels and no phase is free-flying): "
+            "the simulation does not fire them", loaded.source.locate(("thrusters",), prefer_key=True), "thrusters",
+            "set simulation.attitude_actuator: thrusters (or a free-flying phase), or remove the thrusters: section"))
     if uses_thrusters(spec) and spec.attitude is not None:
         missing = missing_directions(ts, "torque")
         if missing:
