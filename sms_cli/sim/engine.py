@@ -167,6 +167,18 @@ class Simulation:
                 on_change = (lambda: self.plant.refresh_body(sm.base_joint_id)) if self.plant is not None else None
                 self.thr = ThrusterDrive(sm, sm.thrusters, on_change=on_change)
         self._propellant: dict[int, list[float]] = {}  # phase index -> [used at its start, used at its end] (kg)
+        # momentum laws' Lyapunov function W (sms_cli.sim.laws.momentum): evaluated on the state after every
+        # plant step, recorded on /control/lyapunov, summarised in the metrics
+        self._lyap_on = hasattr(self.att_law, "lyapunov_terms")
+        self.lyapunov_series: list[tuple[int, float, dict]] = []  # (phase index, t, {W, terms})
+        if getattr(self.att_law, "uses_wrench", False):
+            from sms_cli.errors import InputError, Problem
+
+            bad = [p.name for p in spec.phases if p.base_mode == "rotation-free-floating" and spec.attitude_actuator != "thrusters"]
+            if bad:
+                raise InputError(problems=[Problem(f"attitude law {att_spec.law!r} commands a base wrench (thrusters) but "
+                                                   f"phase(s) {bad} drive the attitude with the wheels", field="simulation.phases",
+                                                   hint="use base_mode: free-flying (or attitude_actuator: thrusters)")])
 
     # ------------------------------------------------------------------ helpers
     def _init_stops(self) -> None:
@@ -253,8 +265,34 @@ class Simulation:
             from sms_cli.thrusters.topics import thruster_topics
 
             extra = thruster_topics(self.thr, zero=initial)
+        if self._lyap_on:  # W and its terms at the sample's time (Vicariotto 2023 (4.9), (4.17), L768, L818, L830)
+            d = self.lyapunov_series[-1][2] if self.lyapunov_series and self.lyapunov_series[-1][1] == t else \
+                self.att_law.lyapunov_terms(s.q, s.v, att_ref.quat)
+            extra = dict(extra or {})
+            extra["/control/lyapunov"] = {k: float(d[k]) for k in sorted(d)}
         self._buffer.add(t, s.q, s.v, s.eta, tau_w, tau_m, att_ref.quat, arm_ref.q, att_err_vec, p, k, reaction,
                          base_wrench if self._record_wrench else None, extra, locked=locked)
+
+    def _lyapunov(self, ip: int, t: float, s: State, att_ref) -> None:
+        self.lyapunov_series.append((ip, t, self.att_law.lyapunov_terms(s.q, s.v, att_ref.quat)))
+
+    def _lyapunov_metrics(self, result) -> None:
+        """Per phase: W at its start and end, the largest increase of W over one plant step and the sum of the
+        increases (within one stage of a hierarchical law); overall: the largest of them."""
+        worst = 0.0
+        for summary, (ip, _, _) in zip(result.phases, self._spans):
+            rows = [d for i, _, d in self.lyapunov_series if i == ip]
+            if not rows:
+                continue
+            W = np.array([d["W"] for d in rows])
+            stage = np.array([d.get("stage", 1.0) for d in rows])
+            inc = np.diff(W)[np.diff(stage) == 0] if W.size > 1 else np.zeros(0)
+            up = float(inc.max()) if inc.size else 0.0
+            summary["lyapunov_start"], summary["lyapunov_end"] = float(W[0]), float(W[-1])
+            summary["lyapunov_increase_max"] = up
+            summary["lyapunov_increase_total"] = float(inc[inc > 0].sum()) if inc.size else 0.0
+            worst = max(worst, up)
+        result.overall["lyapunov_increase_max"] = worst
 
     def _held_base_reaction(self, s: State, tau_w, tau_m) -> np.ndarray:
         """Wrench [f; n] (base frame) the support applies to hold the base while the wheels and the arm
@@ -343,6 +381,8 @@ class Simulation:
                 if fixed:
                     s.v[:6] = 0.0  # the support takes the base's momentum at the phase start
                 settled_since = None
+                if self._lyap_on:
+                    self._lyapunov(ip, t, s, att.at(0.0))
                 for tick in range(n_ticks):
                     tau_ph = t - t_phase0
                     sensed = self.sensors.measure(t, s.q, s.v, s.eta, s.etadot)
@@ -396,6 +436,8 @@ class Simulation:
                             s = rkmk4_step(sm.model, s, self.dt, lambda q, v, e, ed, _tau=tau: fd(q, v, e, ed, _tau))
                         t += self.dt
                         steps += 1
+                        if self._lyap_on:
+                            self._lyapunov(ip, t, s, att_ref)
                         if rec_take is not None and rec_take(t):
                             self._record(t, s, att_ref, arm_ref, tau[sm.idx.wheels], tau_m, attitude_error(att_ref.quat, s.q[3:7]),
                                          tau[:6] + self.thr.delivered if self.thr is not None else tau[:6])
@@ -463,7 +505,16 @@ class Simulation:
         tau_w = np.zeros(self.wheels.n)
         sat = False
         self._base_torque = np.zeros(3)
-        if phase.base_mode not in ("free-floating", "fixed") and self.att_law is not None:
+        if phase.base_mode not in ("free-floating", "fixed") and hasattr(self.att_law, "actuate"):
+            # momentum laws (sms_cli.sim.laws.momentum): wheel torques and base wrench directly, no allocation
+            tw, wrench = self.att_law.actuate(s, att_ref)
+            if tw is not None:
+                tau_w, flags = self.wheels.clip_torque(np.asarray(tw, float))
+                sat = bool(np.any(flags))
+            if wrench is not None:
+                base_wrench[:] = wrench
+                self._base_torque = base_wrench[3:6].copy()
+        elif phase.base_mode not in ("free-floating", "fixed") and self.att_law is not None:
             T = np.asarray(self.att_law.torque(s, att_ref), float)
             self._base_torque = T
             if phase.base_mode == "free-flying" or self.spec.attitude_actuator == "thrusters":
@@ -523,6 +574,9 @@ class Simulation:
     def _result(self, status, why, t, steps, trace: Trace, spans, wall) -> SimResult:
         engine = "python" if self.plant is None else "python, compiled plant"
         result = build_result(self.spec, self.sm, status, why, t, steps, trace.arrays(), spans, wall, engine)
+        if self._lyap_on:
+            self._spans = spans
+            self._lyapunov_metrics(result)
         if self.thr is not None:  # propellant per phase, per attitude law and overall (kg)
             law = getattr(self.att_spec, "law", "attitude")
             for summary, (ip, _, _) in zip(result.phases, spans):

@@ -13,6 +13,9 @@ Examples::
     attitude: {law: smc, k: 0.08, c: 0.008, mu: 10}
     attitude: {law: twisting_smc, k1: 0.05, k2: 0.02, lambda: 0.5}
     attitude: {law: backstepping, K1: 0.5, K2: 0.3}
+    attitude: {law: wheels_free_floating, kp: 50, kd: 1e-3, inertia_shaping: false}
+    attitude: {law: free_flying, kp: 50, kd_base: 400, kd_wheels: 1e-3, kp_position: 10, kd_position: 100}
+    attitude: {law: hierarchical, kp: 50, kd_base: 400, kd_wheels: 1e-3, mu_threshold: 1e-4}
     arm: {law: joint_pd, kp: 1.0, kd: 100}
     arm: {law: smc, k: 0.5, lambda: 0.2}
     arm: {law: computed_torque, kp: 0.04, kd: 0.4}
@@ -123,8 +126,52 @@ class BacksteppingSpec(StrictModel):
     inertia: InertiaChoice = "online"
 
 
+class WheelsFreeFloatingSpec(StrictModel):
+    """Vicariotto 2023 (4.13): wheels only at zero momentum, τ_w = Λᵀγ − K_dθ̇, γ = (skew(K_p R_e))^∨;
+    ``inertia_shaping``: §4.2.2, τ_w = M_θ(ΛᵀM_θ)⁻¹(Λᵀγ − K_dθ̇) (sms_cli.sim.laws.momentum)."""
+
+    law: Literal["wheels_free_floating"]
+    kp: Stiffness = Field(description="K_p of the potential ½tr(K_p(1 − R_e)) (N m/rad), diagonal")
+    kd: Damping = Field(description="K_d on the wheel rates θ̇ (N m s/rad): one value or one per wheel")
+    inertia_shaping: bool = Field(False, description="§4.2.2: shaped rotor inertia ΛᵀM_θ (needs 3 wheels, A = I)")
+
+
+class FreeFlyingSpec(StrictModel):
+    """Vicariotto 2023 (4.15)/(4.16): thrusters τ_c = −γ − K_d^b μ + (Iμ)×(Λθ̇), wheels with the Coriolis
+    coupling cancelled, translation PD (3.7) on the CoM rotated into the base frame (sms_cli.sim.laws.momentum)."""
+
+    law: Literal["free_flying"]
+    kp: Stiffness = Field(description="K_p of the attitude potential (N m/rad), diagonal")
+    kd_base: Damping = Field(description="K_d^b on the locked velocity μ (N m s/rad)")
+    kd_wheels: Damping = Field(description="K_d^w on the wheel rates θ̇ (N m s/rad): one value or one per wheel")
+    inertia_shaping: bool = Field(True, description="rotor kinetic energy ½θ̇ᵀΛᵀM_θθ̇ (the thesis's) or ½θ̇ᵀM_θθ̇")
+    kp_position: Plain | None = Field(None, description="K_p of (3.7) on the CoM position error (N/m); none: no force")
+    kd_position: Plain | None = Field(None, description="K_d of (3.7) on the CoM velocity (N s/m)")
+    target_com: list[float] | None = Field(None, description="CoM target, world (m); none: the CoM at the first tick")
+
+    @model_validator(mode="after")
+    def _both(self):
+        if (self.kp_position is None) != (self.kd_position is None):
+            raise ValueError("kp_position and kd_position go together (the translation PD (3.7))")
+        if self.target_com is not None and (len(self.target_com) != 3 or self.kp_position is None):
+            raise ValueError("target_com: three numbers, with kp_position/kd_position")
+        return self
+
+
+class HierarchicalSpec(StrictModel):
+    """Vicariotto 2023 §4.2.4: thrusters detumble μ (L826) until |μ| ≤ mu_threshold, then the wheels' (4.18)."""
+
+    law: Literal["hierarchical"]
+    kp: Stiffness = Field(description="K_p^w of the attitude potential of task 2 (N m/rad), diagonal")
+    kd_base: Damping = Field(description="K_d^b on μ in task 1 (N m s/rad)")
+    kd_wheels: Damping = Field(description="K_d^w on θ̇ in task 2 (N m s/rad): one value or one per wheel")
+    mu_threshold: float = Field(gt=0, description="|μ| (rad/s) below which task 2 starts (the thesis gives none)")
+    inertia_shaping: bool = Field(True, description="task 2 with the shaped rotor inertia ΛᵀM_θ (4.18) or M_θ")
+
+
 AttitudeLawSpec = Annotated[
-    Union[QuaternionPdSpec, MrpFeedbackSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec],
+    Union[QuaternionPdSpec, MrpFeedbackSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec,
+          WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec],
     Field(discriminator="law"),
 ]
 
@@ -263,6 +310,24 @@ def build_attitude_law(spec, sm):
     if isinstance(spec, BacksteppingSpec):
         return A.BacksteppingAttitude(v3(spec.K1, "K1", "axes"), v3(spec.K2, "K2", "axes"), _body(spec, sm),
                                       spec.disturbance)
+    if isinstance(spec, (WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec)):
+        from sms_cli.sim.laws import momentum as L
+
+        nw = len(sm.wheels)
+        vw = lambda x, name: _vec(x, nw, f"{f}.{name}", "wheels")  # noqa: E731
+        try:
+            if isinstance(spec, WheelsFreeFloatingSpec):
+                return L.WheelsFreeFloating(sm, v3(spec.kp, "kp", "axes"), vw(spec.kd, "kd"), spec.inertia_shaping)
+            if isinstance(spec, FreeFlyingSpec):
+                pos = spec.kp_position is not None
+                return L.FreeFlying(sm, v3(spec.kp, "kp", "axes"), v3(spec.kd_base, "kd_base", "axes"),
+                                    vw(spec.kd_wheels, "kd_wheels"), spec.inertia_shaping,
+                                    v3(spec.kp_position, "kp_position", "axes") if pos else None,
+                                    v3(spec.kd_position, "kd_position", "axes") if pos else None, spec.target_com)
+            return L.Hierarchical(sm, v3(spec.kp, "kp", "axes"), v3(spec.kd_base, "kd_base", "axes"),
+                                  vw(spec.kd_wheels, "kd_wheels"), float(spec.mu_threshold), spec.inertia_shaping)
+        except ValueError as exc:
+            raise InputError(problems=[Problem(str(exc), field=f, hint="see sms_cli/sim/laws/momentum.py")]) from None
     raise InputError(f"unknown attitude law {getattr(spec, 'law', spec)!r}")
 
 
