@@ -3,7 +3,7 @@ trajectories (tests/data/momentum_*.yaml: Basilisk's hub, three wheels along x, 
 axis, control rate = 1/dt so the law is sampled at every plant step).
 
 The bound. W_k is the law's W on the state after plant step k (``Simulation.lyapunov_series``), D_k the
-dissipation the proof gives (−Ẇ: θ̇ᵀK_dθ̇, μᵀK_d^bμ + θ̇ᵀK_d^wθ̇ + ċᵀK_dċ; task 2 of the hierarchical law less
+dissipation the proof gives (−Ẇ: θ̇ᵀK_dθ̇, μᵀK_d^bμ + θ̇ᵀK_d^wθ̇ + ċᵀK_dċ, ωᵀK_dω + ċᵀK_dċ; task 2 of the hierarchical law less
 its μ ≠ 0 residual power). The RKMK4 step and the zero-order hold of the law over the step make
 r_k = W_{k+1} − W_k + ½(D_k + D_{k+1})dt nonzero: measured max_k |r_k| = O(dt²) and Σ|r_k| = O(dt) (the hold
 is first order), so
@@ -11,7 +11,7 @@ is first order), so
 - Σ_k |r_k| ≤ 0.03 max W at dt = 0.1 s and halves (ratio in [1.6, 2.5]) at dt = 0.05 s;
 - the largest one-step increase of W, max_k (W_{k+1} − W_k), is ≤ 1e-6 max W at dt = 0.1 s and, when positive,
   drops by at least 8 at dt = 0.05 s (measured 16, ≈ 2⁴; the two free-floating laws; the free-flying and
-  hierarchical W never increase at these steps).
+  hierarchical and SE(3) PD W never increase at these steps).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from sms_cli.model import compile_system
 from sms_cli.sim.engine import Simulation
 
 DATA = ROOT / "tests" / "data"
-CASES = ["momentum_ff_wheels", "momentum_shaping", "momentum_free_flying", "momentum_hierarchical"]
+CASES = ["momentum_ff_wheels", "momentum_shaping", "momentum_free_flying", "momentum_hierarchical", "momentum_se3_pd"]
 
 
 @functools.lru_cache(maxsize=None)
@@ -75,9 +75,9 @@ def test_w_never_increases_beyond_the_integration_error(name):
 def test_each_law_converges(name):
     sim, result, _, _, _ = run(name, 0.1)
     assert result.overall["attitude_error_deg"]["final"] < 0.05
-    mu_end = sim.lyapunov_series[-1][2]["locked"]  # ½ μᵀIμ
-    assert mu_end < 1e-6
-    if name == "momentum_free_flying":  # the CoM is back at its first-tick position, at rest
+    end = sim.lyapunov_series[-1][2]
+    assert end.get("locked", end.get("rotation")) < 1e-6  # ½ μᵀIμ (½ ωᵀ(I − GJGᵀ)ω for se3_pd)
+    if name in ("momentum_free_flying", "momentum_se3_pd"):  # the CoM is back at its first-tick position, at rest
         assert sim.lyapunov_series[-1][2]["translation"] < 1e-4 * sim.lyapunov_series[0][2]["translation"]
 
 
@@ -166,11 +166,12 @@ STATE = dict(attitude=(1.2, -0.7, 2.0), omega=(0.05, -0.04, 0.08), wheel_rates=(
 
 
 @pytest.mark.parametrize("name,stage", [("momentum_free_flying", 1), ("momentum_hierarchical", 1),
-                                        ("momentum_hierarchical", 2)])
+                                        ("momentum_hierarchical", 2), ("momentum_se3_pd", 1)])
 def test_w_dot_is_minus_the_dissipation_at_a_tumbling_state(name, stage):
     """Large rotation, spin and wheel rates: every coupling term of (4.15)/(4.16) counts (|Λθ̇| ~ 0.05 rad/s);
     task 2 of the hierarchical law with its μ ≠ 0 residual power."""
-    extra = dict(lin_vel=(0.3, -0.2, 0.1), com_error=(1.0, -2.0, 0.5)) if name == "momentum_free_flying" else {}
+    translates = name in ("momentum_free_flying", "momentum_se3_pd")
+    extra = dict(lin_vel=(0.3, -0.2, 0.1), com_error=(1.0, -2.0, 0.5)) if translates else {}
     wdot, expected = _w_dot(name, **STATE, **extra, stage=stage)
     assert abs(wdot - expected) <= 1e-8 * abs(expected)
 

@@ -67,11 +67,12 @@ class _MomentumLaw:
     the mass changes, i.e. with real thrusters and propellant) and the attitude potential."""
 
     uses_wrench = False
+    needs_wheels = True
 
     def __init__(self, sm, kp, shaping: bool):
         from sms_cli.dynamics.locked import locked_shape, shape_invariant
 
-        if not sm.wheels:
+        if not sm.wheels and self.needs_wheels:
             raise ValueError("this law needs reaction wheels")
         if not shape_invariant(sm):
             raise ValueError("this law needs a rigid base whose only other joints are balanced wheels (no arm, no modes): "
@@ -253,4 +254,50 @@ class Hierarchical(_MomentumLaw):
             X = self._X(ls)
             cor = ls.Lambda.T @ np.cross(v[ANG], ls.I @ mu)
             d["residual"] = float(gamma @ mu + wd @ X @ np.linalg.solve(ls.M_theta, cor))
+        return d
+
+
+class Se3PD(FreeFlying):
+    """Bullo-Murray PD on SE(3) (Vicariotto 2023 (3.7), (3.9), L351, L385) with the thrusters (or the ideal
+    source), the wheels idle (zero torque): τ_c = −γ − K_dω about the CoM (erratum 4: (3.9) read as
+    u_t = −γ − K_dω_b), f = Rᵀ(−K_p^xΔx − K_d^xċ) ((3.7) rotated into the base frame, erratum 3).
+    W (L449) = ½m|ċ|² + ½ωᵀ(I − GJGᵀ)ω + ½ΔxᵀK_p^xΔx + Φ: the rigid body's, with I − GJGᵀ the inertia
+    without the rotors' axial parts (idle rotors keep their axial momentum J(Gᵀω + θ̇), whose energy is
+    constant), so that Ẇ = −ċᵀK_d^xċ − ωᵀK_dω ((3.15); = L449 exactly without wheels)."""
+
+    needs_wheels = False
+
+    def __init__(self, sm, kp, kd, kp_position=None, kd_position=None, target_com=None):
+        _MomentumLaw.__init__(self, sm, kp, False)
+        self.Kd = _diag(kd, 3, "kd")
+        self.translate = kp_position is not None
+        self.Kx = _diag(kp_position, 3, "kp_position") if self.translate else None
+        self.Dx = _diag(kd_position, 3, "kd_position") if self.translate else None
+        self.target = None if target_com is None else np.asarray(target_com, float)
+        self._target0 = self.target
+
+    def actuate(self, s: Sensed, ref: AttitudeRef):
+        ls, v, wd, mu, phi, gamma = self._state(s.q, s.v, ref.quat)
+        tau_c = -gamma - self.Kd @ v[ANG]
+        f = np.zeros(3)
+        if self.translate:
+            R, c, cdot = self._com(ls, s.q, v)
+            if self.target is None:
+                self.target = c.copy()
+            f = R.T @ (-self.Kx @ (c - self.target) - self.Dx @ cdot)
+        return np.zeros(len(wd)), np.concatenate([f, tau_c + np.cross(ls.com_base, f)])
+
+    def lyapunov_terms(self, q, v, ref_quat) -> dict:
+        ls, v, wd, mu, phi, gamma = self._state(q, v, ref_quat)
+        w = v[ANG]
+        Ib = ls.I - (ls.G * ls.J) @ ls.G.T
+        d = {"rotation": 0.5 * float(w @ Ib @ w), "potential": phi, "translation": 0.0}
+        diss = float(w @ self.Kd @ w)
+        if self.translate:
+            R, c, cdot = self._com(ls, q, v)
+            dx = c - (c if self.target is None else self.target)
+            d["translation"] = 0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx)
+            diss += float(cdot @ self.Dx @ cdot)
+        d["W"] = d["rotation"] + d["potential"] + d["translation"]
+        d["dissipation"] = diss
         return d

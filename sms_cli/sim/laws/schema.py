@@ -16,6 +16,7 @@ Examples::
     attitude: {law: wheels_free_floating, kp: 50, kd: 1e-3, inertia_shaping: false}
     attitude: {law: free_flying, kp: 50, kd_base: 400, kd_wheels: 1e-3, kp_position: 10, kd_position: 100}
     attitude: {law: hierarchical, kp: 50, kd_base: 400, kd_wheels: 1e-3, mu_threshold: 1e-4}
+    attitude: {law: se3_pd, kp: 50, kd: 400, kp_position: 10, kd_position: 100}
     arm: {law: joint_pd, kp: 1.0, kd: 100}
     arm: {law: smc, k: 0.5, lambda: 0.2}
     arm: {law: computed_torque, kp: 0.04, kd: 0.4}
@@ -158,6 +159,25 @@ class FreeFlyingSpec(StrictModel):
         return self
 
 
+class Se3PdSpec(StrictModel):
+    """Vicariotto 2023 (3.7)/(3.9), Bullo-Murray: τ_c = −γ − K_dω, f = Rᵀ(−K_pΔx − K_dċ); wheels idle."""
+
+    law: Literal["se3_pd"]
+    kp: Stiffness = Field(description="K_p of the attitude potential ½tr(K_p(1 − R_e)) (N m/rad), diagonal")
+    kd: Damping = Field(description="K_d on the base rate ω (N m s/rad)")
+    kp_position: Plain | None = Field(None, description="K_p of (3.7) on the CoM position error (N/m); none: no force")
+    kd_position: Plain | None = Field(None, description="K_d of (3.7) on the CoM velocity (N s/m)")
+    target_com: list[float] | None = Field(None, description="CoM target, world (m); none: the CoM at the first tick")
+
+    @model_validator(mode="after")
+    def _both(self):
+        if (self.kp_position is None) != (self.kd_position is None):
+            raise ValueError("kp_position and kd_position go together (the translation PD (3.7))")
+        if self.target_com is not None and (len(self.target_com) != 3 or self.kp_position is None):
+            raise ValueError("target_com: three numbers, with kp_position/kd_position")
+        return self
+
+
 class HierarchicalSpec(StrictModel):
     """Vicariotto 2023 §4.2.4: thrusters detumble μ (L826) until |μ| ≤ mu_threshold, then the wheels' (4.18)."""
 
@@ -171,7 +191,7 @@ class HierarchicalSpec(StrictModel):
 
 AttitudeLawSpec = Annotated[
     Union[QuaternionPdSpec, MrpFeedbackSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec,
-          WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec],
+          WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec],
     Field(discriminator="law"),
 ]
 
@@ -310,7 +330,7 @@ def build_attitude_law(spec, sm):
     if isinstance(spec, BacksteppingSpec):
         return A.BacksteppingAttitude(v3(spec.K1, "K1", "axes"), v3(spec.K2, "K2", "axes"), _body(spec, sm),
                                       spec.disturbance)
-    if isinstance(spec, (WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec)):
+    if isinstance(spec, (WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec)):
         from sms_cli.sim.laws import momentum as L
 
         nw = len(sm.wheels)
@@ -324,6 +344,11 @@ def build_attitude_law(spec, sm):
                                     vw(spec.kd_wheels, "kd_wheels"), spec.inertia_shaping,
                                     v3(spec.kp_position, "kp_position", "axes") if pos else None,
                                     v3(spec.kd_position, "kd_position", "axes") if pos else None, spec.target_com)
+            if isinstance(spec, Se3PdSpec):
+                pos = spec.kp_position is not None
+                return L.Se3PD(sm, v3(spec.kp, "kp", "axes"), v3(spec.kd, "kd", "axes"),
+                               v3(spec.kp_position, "kp_position", "axes") if pos else None,
+                               v3(spec.kd_position, "kd_position", "axes") if pos else None, spec.target_com)
             return L.Hierarchical(sm, v3(spec.kp, "kp", "axes"), v3(spec.kd_base, "kd_base", "axes"),
                                   vw(spec.kd_wheels, "kd_wheels"), float(spec.mu_threshold), spec.inertia_shaping)
         except ValueError as exc:
