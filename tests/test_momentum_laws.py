@@ -187,3 +187,38 @@ def test_w_dot_of_the_free_floating_laws_at_zero_momentum():
     for name in ("momentum_ff_wheels", "momentum_shaping"):
         wdot, expected = _w_dot(name, STATE["attitude"], omega, wd)
         assert abs(wdot - expected) <= 1e-8 * abs(expected)
+
+
+# ---------------------------------------------------------------------------- sms synthesize (synthesis.pd.target_law)
+@pytest.mark.parametrize("target,data", [("wheels_free_floating", "momentum_ff_wheels"), ("inertia_shaping", "momentum_shaping"),
+                                         ("free_flying", "momentum_free_flying"), ("se3_pd", "momentum_se3_pd")])
+def test_synthesized_gains_are_the_hand_derived_ones(target, data):
+    """K_p = I ω_n², K_d = 2ζω_n I per axis, mapped through Λ = J/I (sms_cli.synthesis.stage.momentum_law_gains),
+    equal the gains written by hand in the test missions (ω_n = 0.3 rad/s, ζ = 0.8)."""
+    from sms_cli.synthesis.stage import synthesize_mission
+
+    loaded = load_mission(DATA / "momentum_synth.yaml")
+    syn = loaded.mission.synthesis
+    loaded.mission.synthesis = syn.model_copy(update={"pd": syn.pd.model_copy(update={"target_law": target})})
+    block = synthesize_mission(loaded).gains.simulation["attitude"]
+    hand = load_mission(DATA / f"{data}.yaml").mission.simulation.attitude.model_dump()
+    for key, value in block.items():
+        if key == "law" or key == "inertia_shaping":
+            assert hand[key] == value
+        elif key == "kd_wheels":  # 2ζω_n(ΛᵀM_θ)_ii against the hand 2ζω_n ΛJ: M_θ = J(1 − Λ)
+            assert np.allclose(value, hand[key], rtol=2e-4)
+        else:
+            assert np.allclose(value, hand[key], rtol=1e-5), key
+
+
+def test_sms_run_reads_the_synthesized_momentum_law(tmp_path):
+    from conftest import run_cli
+
+    r = run_cli("run", str(DATA / "momentum_synth.yaml"), "-o", str(tmp_path))
+    assert r.exit_code == 0, r.output
+    import json
+
+    res = json.loads((tmp_path / "results.json").read_text())
+    assert "wheels_free_floating" in (tmp_path / "gains.yaml").read_text()
+    assert res["simulate"]["overall"]["attitude_error_deg"]["final"] < 0.05
+    assert res["simulate"]["overall"]["lyapunov_increase_max"] <= 1e-6 * res["simulate"]["phases"][0]["lyapunov_start"]

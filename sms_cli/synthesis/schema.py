@@ -86,6 +86,17 @@ class PdSpec(StrictModel):
 
     bandwidth: AngularRate = Field(gt=0, description="natural frequency ω_n of each axis (rad/s)")
     damping: Dimensionless = Field(1.0, gt=0, description="damping ratio ζ")
+    target_law: Literal["quaternion_pd", "wheels_free_floating", "inertia_shaping", "free_flying", "hierarchical",
+                        "se3_pd"] = Field(
+        "quaternion_pd", description="attitude law gains.yaml is written for: the per-axis K_p = I ω_n², K_d = 2ζω_n I "
+        "mapped through Λ = J/I for the Vicariotto 2023 wheel laws (sms_cli/sim/laws/momentum.py; wheels along the base axes)")
+    mu_threshold: AngularRate | None = Field(None, gt=0, description="target_law: hierarchical, its |μ| switch (rad/s)")
+
+    @model_validator(mode="after")
+    def _threshold(self):
+        if (self.target_law == "hierarchical") != (self.mu_threshold is not None):
+            raise ValueError("mu_threshold goes with target_law: hierarchical (and is needed by it)")
+        return self
 
 
 class LqrSpec(StrictModel):

@@ -259,6 +259,9 @@ def _run_classical(sm, spec):
         section["saturation_angle_rad"] = theta_sat.tolist()
         gains.controller = ControllerGains(units="torque", kp=kp.tolist(), kv=kd.tolist())
         gains.simulation = {"attitude": {"law": "quaternion_pd", "kp": kp.tolist(), "kd": kd.tolist()}}
+        if spec.law == "pd" and spec.pd.target_law != "quaternion_pd":
+            gains.simulation = {"attitude": momentum_law_gains(sm, spec.pd, kp, kd)}
+            section["target_law"] = gains.simulation["attitude"]
         section["gains"] = [{"axis": a, "kp_n_m_rad": float(p), "kd_n_m_s_rad": float(d)} for a, p, d in zip(AXES, kp, kd)]
     else:
         from sms_cli.synthesis.build import arm_disturbance_bound
@@ -331,3 +334,40 @@ def format_synthesis(section: dict) -> str:
     if section.get("files"):
         lines.append("files: " + ", ".join(section["files"].values()))
     return "\n".join(lines)
+
+
+def momentum_law_gains(sm, pd, kp: np.ndarray, kd: np.ndarray) -> dict:
+    """The attitude block of a Vicariotto 2023 momentum law (sms_cli.sim.laws.momentum) with the per-axis
+    closed loop I φ̈ + K_d φ̇ + K_p φ = 0 of the PD gains (K_p = I ω_n², K_d = 2ζω_n I), linearised at rest with
+    wheel i along base axis i, Λ_i = J_i / I_i:
+
+    - wheels_free_floating (4.13): I φ̈ = −Λ k_p φ − (k_d/Λ) φ̇, so k_p = K_p/Λ, k_d = K_d Λ;
+    - inertia_shaping (§4.2.2): I φ̈ = −k_p φ − (k_d/Λ²) φ̇, so k_p = K_p, k_d = K_d Λ²;
+    - free_flying (4.15)/(4.16), se3_pd (3.9): k_p = K_p, k_d^b (k_d) = K_d; the shaped wheels' rates decay
+      at 2ζω_n: k_d^w = 2ζω_n (ΛᵀM_θ)_ii; hierarchical: task 1 k_d^b = K_d, task 2 as inertia_shaping."""
+    from sms_cli.dynamics.locked import locked_shape
+    from sms_cli.errors import InputError, Problem
+
+    law = pd.target_law
+    if law != "se3_pd":
+        if len(sm.wheels) != 3:
+            raise InputError(problems=[Problem(f"target_law {law}: the per-axis mapping needs 3 wheels", field="synthesis.pd.target_law")])
+        ls = locked_shape(sm, sm.q0)
+        G = ls.G
+        if np.abs(np.abs(G) - np.eye(3)).max() > 1e-9 or np.abs(ls.I - np.diag(np.diag(ls.I))).max() > 1e-9 * np.abs(ls.I).max():
+            raise InputError(problems=[Problem(f"target_law {law}: the per-axis mapping needs wheel i along base axis i and a "
+                                               "diagonal locked inertia (A = I, Vicariotto 2023 L762)", field="synthesis.pd.target_law",
+                                               hint="write the gains in simulation.attitude instead")])
+        lam = np.abs(np.diag(ls.Lambda))
+        X = np.diag(ls.Lambda.T @ ls.M_theta_wheels)
+    wz = 2.0 * float(pd.damping) * float(pd.bandwidth)
+    if law == "wheels_free_floating":
+        return {"law": law, "kp": (kp / lam).tolist(), "kd": (kd * lam).tolist()}
+    if law == "inertia_shaping":
+        return {"law": "wheels_free_floating", "inertia_shaping": True, "kp": kp.tolist(), "kd": (kd * lam**2).tolist()}
+    if law == "free_flying":
+        return {"law": law, "kp": kp.tolist(), "kd_base": kd.tolist(), "kd_wheels": (wz * X).tolist()}
+    if law == "hierarchical":
+        return {"law": law, "kp": kp.tolist(), "kd_base": kd.tolist(), "kd_wheels": (kd * lam**2).tolist(),
+                "mu_threshold": float(pd.mu_threshold)}
+    return {"law": "se3_pd", "kp": kp.tolist(), "kd": kd.tolist()}
