@@ -167,6 +167,11 @@ class FreeFlying(_MomentumLaw):
         super().__init__(sm, kp, inertia_shaping)
         self.Kb = _diag(kd_base, 3, "kd_base")
         self.Kw = _diag(kd_wheels, len(sm.wheels), "kd_wheels")
+        self._init_translation(kp_position, kd_position, target_com)
+
+    def _init_translation(self, kp_position, kd_position, target_com) -> None:
+        """The translation PD (3.7) on the CoM: gains (N/m, N s/m) and target (world, m; none: the CoM at
+        the first tick)."""
         self.translate = kp_position is not None
         self.Kx = _diag(kp_position, 3, "kp_position") if self.translate else None
         self.Dx = _diag(kd_position, 3, "kd_position") if self.translate else None
@@ -182,30 +187,38 @@ class FreeFlying(_MomentumLaw):
         cdot = R @ (v[:3] + ls.T[0:3, 3:] @ v[3:])  # v_c = v + M_vv⁻¹[M_vω, M_vs] ẋ (locked.py's T), world
         return R, c, cdot
 
+    def _wrench(self, ls, q, v, tau_c) -> np.ndarray:
+        """Base wrench [f; n] (base frame, about the base origin) of the CoM torque ``tau_c`` and the
+        translation PD (3.7) rotated into the base frame (erratum 3): f = Rᵀ(−K_p^xΔx − K_d^xċ)."""
+        f = np.zeros(3)
+        if self.translate:
+            R, c, cdot = self._com(ls, q, v)
+            if self.target is None:
+                self.target = c.copy()
+            f = R.T @ (-self.Kx @ (c - self.target) - self.Dx @ cdot)
+        return np.concatenate([f, tau_c + np.cross(ls.com_base, f)])
+
+    def _translation_terms(self, ls, q, v) -> tuple[float, float]:
+        """(½m|ċ|² + ½ΔxᵀK_p^xΔx, ċᵀK_d^xċ): the translation's part of W and of its dissipation."""
+        if not self.translate:
+            return 0.0, 0.0
+        R, c, cdot = self._com(ls, q, v)
+        dx = c - (c if self.target is None else self.target)
+        return (0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx)), float(cdot @ self.Dx @ cdot)
+
     def actuate(self, s: Sensed, ref: AttitudeRef):
         ls, v, wd, mu, phi, gamma = self._state(s.q, s.v, ref.quat)
         Imu = ls.I @ mu
         omega = v[ANG]
         tau_c = -gamma - self.Kb @ mu + np.cross(Imu, ls.Lambda @ wd)
         tau_w = ls.Lambda.T @ tau_c + self._wheel_law(ls, gamma, wd, self.Kw) - ls.Lambda.T @ np.cross(omega, Imu)
-        f = np.zeros(3)
-        if self.translate:
-            R, c, cdot = self._com(ls, s.q, v)
-            if self.target is None:
-                self.target = c.copy()
-            f = R.T @ (-self.Kx @ (c - self.target) - self.Dx @ cdot)
-        return tau_w, np.concatenate([f, tau_c + np.cross(ls.com_base, f)])
+        return tau_w, self._wrench(ls, s.q, v, tau_c)
 
     def lyapunov_terms(self, q, v, ref_quat) -> dict:
         ls, v, wd, mu, phi, gamma = self._state(q, v, ref_quat)
         d = self._terms(ls, mu, wd, phi)
-        d["translation"] = 0.0
-        diss = float(mu @ self.Kb @ mu + wd @ self.Kw @ wd)
-        if self.translate:
-            R, c, cdot = self._com(ls, q, v)
-            dx = c - (c if self.target is None else self.target)
-            d["translation"] = 0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx)
-            diss += float(cdot @ self.Dx @ cdot)
+        d["translation"], diss = self._translation_terms(ls, q, v)
+        diss += float(mu @ self.Kb @ mu + wd @ self.Kw @ wd)
         d["W"] = d["locked"] + d["shape"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
         return d
@@ -270,34 +283,20 @@ class Se3PD(FreeFlying):
     def __init__(self, sm, kp, kd, kp_position=None, kd_position=None, target_com=None):
         _MomentumLaw.__init__(self, sm, kp, False)
         self.Kd = _diag(kd, 3, "kd")
-        self.translate = kp_position is not None
-        self.Kx = _diag(kp_position, 3, "kp_position") if self.translate else None
-        self.Dx = _diag(kd_position, 3, "kd_position") if self.translate else None
-        self.target = None if target_com is None else np.asarray(target_com, float)
-        self._target0 = self.target
+        self._init_translation(kp_position, kd_position, target_com)
 
     def actuate(self, s: Sensed, ref: AttitudeRef):
         ls, v, wd, mu, phi, gamma = self._state(s.q, s.v, ref.quat)
         tau_c = -gamma - self.Kd @ v[ANG]
-        f = np.zeros(3)
-        if self.translate:
-            R, c, cdot = self._com(ls, s.q, v)
-            if self.target is None:
-                self.target = c.copy()
-            f = R.T @ (-self.Kx @ (c - self.target) - self.Dx @ cdot)
-        return np.zeros(len(wd)), np.concatenate([f, tau_c + np.cross(ls.com_base, f)])
+        return np.zeros(len(wd)), self._wrench(ls, s.q, v, tau_c)
 
     def lyapunov_terms(self, q, v, ref_quat) -> dict:
         ls, v, wd, mu, phi, gamma = self._state(q, v, ref_quat)
         w = v[ANG]
         Ib = ls.I - (ls.G * ls.J) @ ls.G.T
-        d = {"rotation": 0.5 * float(w @ Ib @ w), "potential": phi, "translation": 0.0}
-        diss = float(w @ self.Kd @ w)
-        if self.translate:
-            R, c, cdot = self._com(ls, q, v)
-            dx = c - (c if self.target is None else self.target)
-            d["translation"] = 0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx)
-            diss += float(cdot @ self.Dx @ cdot)
+        d = {"rotation": 0.5 * float(w @ Ib @ w), "potential": phi}
+        d["translation"], diss = self._translation_terms(ls, q, v)
+        diss += float(w @ self.Kd @ w)
         d["W"] = d["rotation"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
         return d

@@ -137,7 +137,23 @@ class WheelsFreeFloatingSpec(StrictModel):
     inertia_shaping: bool = Field(False, description="§4.2.2: shaped rotor inertia ΛᵀM_θ (needs 3 wheels, A = I)")
 
 
-class FreeFlyingSpec(StrictModel):
+class _TranslationPd(StrictModel):
+    """The translation PD (3.7) of Vicariotto 2023 on the CoM, optional in the laws that command a force."""
+
+    kp_position: Plain | None = Field(None, description="K_p of (3.7) on the CoM position error (N/m); none: no force")
+    kd_position: Plain | None = Field(None, description="K_d of (3.7) on the CoM velocity (N s/m)")
+    target_com: list[float] | None = Field(None, description="CoM target, world (m); none: the CoM at the first tick")
+
+    @model_validator(mode="after")
+    def _both(self):
+        if (self.kp_position is None) != (self.kd_position is None):
+            raise ValueError("kp_position and kd_position go together (the translation PD (3.7))")
+        if self.target_com is not None and (len(self.target_com) != 3 or self.kp_position is None):
+            raise ValueError("target_com: three numbers, with kp_position/kd_position")
+        return self
+
+
+class FreeFlyingSpec(_TranslationPd):
     """Vicariotto 2023 (4.15)/(4.16): thrusters τ_c = −γ − K_d^b μ + (Iμ)×(Λθ̇), wheels with the Coriolis
     coupling cancelled, translation PD (3.7) on the CoM rotated into the base frame (sms_cli.sim.laws.momentum)."""
 
@@ -146,36 +162,14 @@ class FreeFlyingSpec(StrictModel):
     kd_base: Damping = Field(description="K_d^b on the locked velocity μ (N m s/rad)")
     kd_wheels: Damping = Field(description="K_d^w on the wheel rates θ̇ (N m s/rad): one value or one per wheel")
     inertia_shaping: bool = Field(True, description="rotor kinetic energy ½θ̇ᵀΛᵀM_θθ̇ (the thesis's) or ½θ̇ᵀM_θθ̇")
-    kp_position: Plain | None = Field(None, description="K_p of (3.7) on the CoM position error (N/m); none: no force")
-    kd_position: Plain | None = Field(None, description="K_d of (3.7) on the CoM velocity (N s/m)")
-    target_com: list[float] | None = Field(None, description="CoM target, world (m); none: the CoM at the first tick")
-
-    @model_validator(mode="after")
-    def _both(self):
-        if (self.kp_position is None) != (self.kd_position is None):
-            raise ValueError("kp_position and kd_position go together (the translation PD (3.7))")
-        if self.target_com is not None and (len(self.target_com) != 3 or self.kp_position is None):
-            raise ValueError("target_com: three numbers, with kp_position/kd_position")
-        return self
 
 
-class Se3PdSpec(StrictModel):
+class Se3PdSpec(_TranslationPd):
     """Vicariotto 2023 (3.7)/(3.9), Bullo-Murray: τ_c = −γ − K_dω, f = Rᵀ(−K_pΔx − K_dċ); wheels idle."""
 
     law: Literal["se3_pd"]
     kp: Stiffness = Field(description="K_p of the attitude potential ½tr(K_p(1 − R_e)) (N m/rad), diagonal")
     kd: Damping = Field(description="K_d on the base rate ω (N m s/rad)")
-    kp_position: Plain | None = Field(None, description="K_p of (3.7) on the CoM position error (N/m); none: no force")
-    kd_position: Plain | None = Field(None, description="K_d of (3.7) on the CoM velocity (N s/m)")
-    target_com: list[float] | None = Field(None, description="CoM target, world (m); none: the CoM at the first tick")
-
-    @model_validator(mode="after")
-    def _both(self):
-        if (self.kp_position is None) != (self.kd_position is None):
-            raise ValueError("kp_position and kd_position go together (the translation PD (3.7))")
-        if self.target_com is not None and (len(self.target_com) != 3 or self.kp_position is None):
-            raise ValueError("target_com: three numbers, with kp_position/kd_position")
-        return self
 
 
 class HierarchicalSpec(StrictModel):
