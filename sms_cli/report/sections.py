@@ -452,6 +452,11 @@ SIM_CAPTIONS = {
     "sim_joints.png": "Manipulator joint tracking errors and torques: how well the arm follows its reference.",
     "sim_modes.png": "Largest modal amplitude of the flexible appendages: how much the manoeuvre excites them.",
     "sim_end_effector.png": "End-effector position error against time: how well the end effector reaches its target.",
+    "sim_thrusters.png": "Thrusters: the ideal torque and force the law asked for (solid) against the cycle average of "
+                         "the firings that delivered it (dashed; the difference is the MIB dead band and the "
+                         "quantisation), the total thrust and the propellant used (as Vicariotto 2023 Figs. 4.4d, 4.5d).",
+    "sim_momentum.png": "Locked velocity μ = ω + Λθ̇ (Vicariotto 2023 (4.8)) and the attitude law's Lyapunov function "
+                        "W: whether the law dissipates what it should.",
 }
 
 

@@ -291,6 +291,9 @@ class Simulation:
             summary["lyapunov_start"], summary["lyapunov_end"] = float(W[0]), float(W[-1])
             summary["lyapunov_increase_max"] = up
             summary["lyapunov_increase_total"] = float(inc[inc > 0].sum()) if inc.size else 0.0
+            if "position_error" in rows[0]:  # translation PD (3.7): the CoM's distance to its target (m)
+                dist = np.array([d["position_error"] for d in rows])
+                summary["com_position_error_m"] = {"max": float(dist.max()), "final": float(dist[-1])}
             worst = max(worst, up)
         result.overall["lyapunov_increase_max"] = worst
 
@@ -570,6 +573,17 @@ class Simulation:
             tr.base_reaction.append(self._held_base_reaction(s, tau_w, tau_m))
         else:
             tr.base_reaction.append(np.full(6, np.nan))
+        if self.thr is not None:
+            tr.thruster_commanded.append(self.thr.commanded.copy())
+            tr.thruster_delivered.append(self.thr.pattern_wrench)
+            tr.thrust_total.append(float(self.thr.ts.max_force @ self.thr.on) / self.thr.ts.firing_cycle)
+            tr.propellant_used.append(float(self.thr.used))
+        if self._lyap_on:  # the momentum laws' own quantities: mu (Vicariotto 2023 (4.8)) and W
+            from sms_cli.dynamics.locked import locked_velocity
+
+            tr.locked.append(locked_velocity(sm, s.q, s.v, s.etadot))
+            # W at the end of the last plant step, i.e. at this tick (the series has one entry per step)
+            tr.lyapunov.append(float(self.lyapunov_series[-1][2]["W"]) if self.lyapunov_series else float("nan"))
 
     def _result(self, status, why, t, steps, trace: Trace, spans, wall) -> SimResult:
         engine = "python" if self.plant is None else "python, compiled plant"

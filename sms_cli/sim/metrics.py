@@ -37,6 +37,15 @@ class Trace:
     # penetration beyond the URDF range in that tick (rad or m; also without the stops: how far past)
     joint_stop_time: list[np.ndarray] = field(default_factory=list)
     joint_stop_penetration: list[np.ndarray] = field(default_factory=list)
+    # real thrusters (sms_cli.thrusters): the tick's ideal wrench, its firing pattern's cycle average ([f; n],
+    # base joint frame, N and N m), the pattern's total thrust (N) and the propellant used so far (kg)
+    thruster_commanded: list[np.ndarray] = field(default_factory=list)
+    thruster_delivered: list[np.ndarray] = field(default_factory=list)
+    thrust_total: list[float] = field(default_factory=list)
+    propellant_used: list[float] = field(default_factory=list)
+    # momentum laws (sms_cli.sim.laws.momentum): locked velocity mu (rad/s, base frame) and the law's W (J)
+    locked: list[np.ndarray] = field(default_factory=list)
+    lyapunov: list[float] = field(default_factory=list)
 
     def arrays(self) -> dict[str, np.ndarray]:
         def stack(x, width):
@@ -51,7 +60,9 @@ class Trace:
             "segment": np.array(self.segment, dtype=int),
             "base_torque": np.array(self.base_torque) if self.base_torque else np.zeros((len(self.t), 3)),
             **({"base_motion": np.array(self.base_motion)} if self.t and len(self.base_motion) == len(self.t) else {}),
-            **{k: np.array(getattr(self, k)) for k in ("joint_rate_ref", "joint_rate", "wheel_rate_ref")
+            **{k: np.array(getattr(self, k)) for k in ("joint_rate_ref", "joint_rate", "wheel_rate_ref", "thruster_commanded",
+                                                        "thruster_delivered", "thrust_total", "propellant_used",
+                                                        "locked", "lyapunov")
                if len(getattr(self, k)) == len(self.t) and self.t},
             "joint_stop_time": stack(self.joint_stop_time, 0), "joint_stop_penetration": stack(self.joint_stop_penetration, 0),
         }

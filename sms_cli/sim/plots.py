@@ -15,7 +15,8 @@ RPM = 60 / (2 * math.pi)
 
 @S.styled
 def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> list[Path]:
-    """Attitude error, wheel speeds/torques, joint tracking/torques, modal amplitudes vs time."""
+    """Attitude error, wheel speeds/torques, joint tracking/torques, modal amplitudes, thrusters (ideal vs
+    delivered wrench, thrust, propellant), locked velocity μ and Lyapunov W vs time."""
     t = trace["t"]
     files: list[Path] = []
     if t.size == 0:
@@ -66,6 +67,39 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
         ax.plot(t, trace["modal_peak"], lw=1.1, color="C0")
         ax.set(ylabel="max |η| (√kg m)", title="Flexible appendages: largest modal amplitude")
         finish(fig, [ax], "sim_modes.png")
+    if "thruster_commanded" in trace:  # Vicariotto 2023 Figs. 4.4d/4.5d: ideal vs delivered, thrust, propellant
+        cmd, dlv = trace["thruster_commanded"], trace["thruster_delivered"]
+        fig, axes = S.new(S.FULL_PX, 560, 3, 1, sharex=True)
+        for k, c in enumerate("xyz"):
+            axes[0].plot(t, cmd[:, 3 + k], lw=1.0, color=f"C{k}", label=f"ideal n{c}")
+            axes[0].step(t, dlv[:, 3 + k], where="post", lw=0.8, ls="--", color=f"C{k}", label=f"delivered n{c}")
+        axes[0].set(ylabel="torque (N m)", title="Thrusters: ideal torque vs the firings' cycle average, thrust, propellant")
+        for k, c in enumerate("xyz"):
+            axes[1].plot(t, cmd[:, k], lw=1.0, color=f"C{k}", label=f"ideal f{c}")
+            axes[1].step(t, dlv[:, k], where="post", lw=0.8, ls="--", color=f"C{k}", label=f"delivered f{c}")
+        axes[1].set(ylabel="force (N)")
+        axes[2].step(t, trace["thrust_total"], where="post", lw=0.9, color="C0", label="total thrust")
+        axes[2].set(ylabel="total thrust (N)")
+        ax2 = axes[2].twinx()
+        ax2.plot(t, trace["propellant_used"] * 1e3, lw=1.3, color="C3", label="propellant used")
+        ax2.set_ylabel("propellant used (g)", color="C3")
+        h0, l0 = axes[0].get_legend_handles_labels()
+        fig.legend(h0 + axes[2].get_lines() + ax2.get_lines(), l0 + ["total thrust", "propellant used"],
+                   loc="outside right upper")
+        finish(fig, list(axes), "sim_thrusters.png")
+    if "locked" in trace:  # the momentum laws: locked velocity mu (4.8) and Lyapunov function W
+        fig, axes = S.new(S.FULL_PX, 420, 2, 1, sharex=True)
+        mu = trace["locked"]
+        for k, c in enumerate("xyz"):
+            axes[0].plot(t, np.degrees(mu[:, k]), lw=1.1, color=f"C{k}", label=f"μ{c}")
+        axes[0].set(ylabel="μ (deg/s)", title="Locked velocity μ = ω + Λθ̇ and the law's Lyapunov function W")
+        W = trace["lyapunov"]
+        axes[1].plot(t, W, lw=1.3, color="C0")
+        if np.all(W[np.isfinite(W)] > 0):
+            axes[1].set_yscale("log")
+        axes[1].set(ylabel="W (J)")
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside right upper")
+        finish(fig, list(axes), "sim_momentum.png")
     ee = trace["ee_err"]
     if ee.size and np.any(np.isfinite(ee)):
         fig, ax = S.new(S.FULL_PX, 260)

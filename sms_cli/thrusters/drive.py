@@ -49,6 +49,12 @@ class ThrusterDrive:
         self.on = on_times(a.thrust, ts.max_force, ts.firing_cycle, ts.mib, ts.quantization)
         return a.saturated
 
+    @property
+    def pattern_wrench(self) -> np.ndarray:
+        """[f; n] (N, N m, base joint frame) of the current firing pattern averaged over its firing cycle:
+        what the modulation delivers of ``commanded`` (the two differ by the quantisation and the MIB)."""
+        return self.B @ (self.ts.max_force * self.on / self.ts.firing_cycle)
+
     def _breaks(self, t: float, t1: float) -> list[float]:
         T = self.ts.firing_cycle
         j0 = int(np.floor((t - self.t0) / T + 1e-12))

@@ -198,13 +198,15 @@ class FreeFlying(_MomentumLaw):
             f = R.T @ (-self.Kx @ (c - self.target) - self.Dx @ cdot)
         return np.concatenate([f, tau_c + np.cross(ls.com_base, f)])
 
-    def _translation_terms(self, ls, q, v) -> tuple[float, float]:
-        """(½m|ċ|² + ½ΔxᵀK_p^xΔx, ċᵀK_d^xċ): the translation's part of W and of its dissipation."""
+    def _translation_terms(self, ls, q, v) -> tuple[float, float, float]:
+        """(½m|ċ|² + ½ΔxᵀK_p^xΔx, ċᵀK_d^xċ, |Δx|): the translation's part of W and of its dissipation, and the
+        CoM's distance to its target (m)."""
         if not self.translate:
-            return 0.0, 0.0
+            return 0.0, 0.0, 0.0
         R, c, cdot = self._com(ls, q, v)
         dx = c - (c if self.target is None else self.target)
-        return (0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx)), float(cdot @ self.Dx @ cdot)
+        return (0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx), float(cdot @ self.Dx @ cdot),
+                float(np.linalg.norm(dx)))
 
     def actuate(self, s: Sensed, ref: AttitudeRef):
         ls, v, wd, mu, phi, gamma = self._state(s.q, s.v, ref.quat)
@@ -217,7 +219,9 @@ class FreeFlying(_MomentumLaw):
     def lyapunov_terms(self, q, v, ref_quat) -> dict:
         ls, v, wd, mu, phi, gamma = self._state(q, v, ref_quat)
         d = self._terms(ls, mu, wd, phi)
-        d["translation"], diss = self._translation_terms(ls, q, v)
+        d["translation"], diss, dist = self._translation_terms(ls, q, v)
+        if self.translate:
+            d["position_error"] = dist
         diss += float(mu @ self.Kb @ mu + wd @ self.Kw @ wd)
         d["W"] = d["locked"] + d["shape"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
@@ -295,7 +299,9 @@ class Se3PD(FreeFlying):
         w = v[ANG]
         Ib = ls.I - (ls.G * ls.J) @ ls.G.T
         d = {"rotation": 0.5 * float(w @ Ib @ w), "potential": phi}
-        d["translation"], diss = self._translation_terms(ls, q, v)
+        d["translation"], diss, dist = self._translation_terms(ls, q, v)
+        if self.translate:
+            d["position_error"] = dist
         diss += float(w @ self.Kd @ w)
         d["W"] = d["rotation"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
