@@ -28,7 +28,8 @@ from sms_cli.model import compile_system
 from sms_cli.sim.engine import Simulation
 
 DATA = ROOT / "tests" / "data"
-CASES = ["momentum_ff_wheels", "momentum_shaping", "momentum_free_flying", "momentum_hierarchical", "momentum_se3_pd"]
+CASES = ["momentum_ff_wheels", "momentum_shaping", "momentum_free_flying", "momentum_hierarchical", "momentum_se3_pd",
+         "momentum_quaternion"]
 
 
 @functools.lru_cache(maxsize=None)
@@ -77,7 +78,7 @@ def test_each_law_converges(name):
     assert result.overall["attitude_error_deg"]["final"] < 0.05
     end = sim.lyapunov_series[-1][2]
     assert end.get("locked", end.get("rotation")) < 1e-6  # ½ μᵀIμ (½ ωᵀ(I − GJGᵀ)ω for se3_pd)
-    if name in ("momentum_free_flying", "momentum_se3_pd"):  # the CoM is back at its first-tick position, at rest
+    if name in ("momentum_free_flying", "momentum_se3_pd", "momentum_quaternion"):  # the CoM is back at its first-tick position, at rest
         assert sim.lyapunov_series[-1][2]["translation"] < 1e-4 * sim.lyapunov_series[0][2]["translation"]
 
 
@@ -166,12 +167,13 @@ STATE = dict(attitude=(1.2, -0.7, 2.0), omega=(0.05, -0.04, 0.08), wheel_rates=(
 
 
 @pytest.mark.parametrize("name,stage", [("momentum_free_flying", 1), ("momentum_hierarchical", 1),
-                                        ("momentum_hierarchical", 2), ("momentum_se3_pd", 1), ("momentum_offset", 1)])
+                                        ("momentum_hierarchical", 2), ("momentum_se3_pd", 1), ("momentum_offset", 1),
+                                        ("momentum_quaternion", 1)])
 def test_w_dot_is_minus_the_dissipation_at_a_tumbling_state(name, stage):
     """Large rotation, spin and wheel rates: every coupling term of (4.15)/(4.16) counts (|Λθ̇| ~ 0.05 rad/s);
     task 2 of the hierarchical law with its μ ≠ 0 residual power; momentum_offset: the CoM 0.37 m off the base
     origin, where the wrench about the origin needs the lever c_b × f."""
-    translates = name in ("momentum_free_flying", "momentum_se3_pd", "momentum_offset")
+    translates = name in ("momentum_free_flying", "momentum_se3_pd", "momentum_offset", "momentum_quaternion")
     extra = dict(lin_vel=(0.3, -0.2, 0.1), com_error=(1.0, -2.0, 0.5)) if translates else {}
     wdot, expected = _w_dot(name, **STATE, **extra, stage=stage)
     assert abs(wdot - expected) <= 1e-8 * abs(expected)

@@ -108,9 +108,12 @@ class _MomentumLaw:
         v = np.asarray(v, float)
         wd = v[self.sm.idx.wheels]
         mu = ls.locked_velocity(v)
-        R = quat_to_rot(q[3:7])
-        phi, gamma = potential(self.Kp, R, quat_to_rot(ref_quat))
+        phi, gamma = self._potential(q, ref_quat)
         return ls, v, wd, mu, phi, gamma
+
+    def _potential(self, q, ref_quat) -> tuple[float, np.ndarray]:
+        """(Φ, γ) with Φ̇ = γᵀω: the trace potential ½tr(K_p(1 − R_e)) of (4.11)."""
+        return potential(self.Kp, quat_to_rot(q[3:7]), quat_to_rot(ref_quat))
 
     def _wheel_law(self, ls, gamma, wd, Kd) -> np.ndarray:
         """M_θX⁻¹(Λᵀγ − K_dθ̇): (4.13) for X = M_θ, (4.18)/§4.2.2 for X = ΛᵀM_θ."""
@@ -306,3 +309,24 @@ class Se3PD(FreeFlying):
         d["W"] = d["rotation"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
         return d
+
+
+class QuaternionLyapunov(Se3PD):
+    """The quaternion PD of Vicariotto 2023 §3.3.1 (L417-L435) with its Lyapunov function, on the base
+    (thrusters or the ideal source; wheels idle; optional translation PD (3.7) as ``se3_pd``):
+    τ_c = −k q₀ q − K_dω, (q₀, q) the error quaternion q_ref⁻¹ ⊗ q (scalar part q₀, vector part q, body
+    frame), W = ½ωᵀ(I − GJGᵀ)ω + k qᵀq (+ the translation terms), Ẇ = −ωᵀK_dω: since
+    q̇ = ½(q₀ω + q × ω), d/dt(k qᵀq) = k q₀ qᵀω, so the potential's γ is k q₀ q. k is one number (a diagonal
+    K would leave qᵀK(q × ω) ≠ 0). ``quaternion_pd`` is L443's alternative τ = −k q_e − K_dω, without this W."""
+
+    def __init__(self, sm, k, kd, kp_position=None, kd_position=None, target_com=None):
+        super().__init__(sm, np.full(3, float(k)), kd, kp_position, kd_position, target_com)
+        self.k = float(k)
+
+    def _potential(self, q, ref_quat) -> tuple[float, np.ndarray]:
+        from sms_cli.sim.attitude_math import quat_conj, quat_mul
+
+        qe = quat_mul(quat_conj(np.asarray(ref_quat, float)), np.asarray(q[3:7], float))
+        qv, q0 = qe[:3], float(qe[3])
+        return self.k * float(qv @ qv), self.k * q0 * qv
+

@@ -172,6 +172,14 @@ class Se3PdSpec(_TranslationPd):
     kd: Damping = Field(description="K_d on the base rate ω (N m s/rad)")
 
 
+class QuaternionLyapunovSpec(_TranslationPd):
+    """Vicariotto 2023 §3.3.1: τ_c = −k q₀ q − K_dω (error quaternion (q₀, q)), W = ½ωᵀIω + k qᵀq; wheels idle."""
+
+    law: Literal["quaternion_lyapunov"]
+    k: float = Field(gt=0, description="k of the potential k qᵀq (N m), one number (the proof needs a scalar)")
+    kd: Damping = Field(description="K_d on the base rate ω (N m s/rad)")
+
+
 class HierarchicalSpec(StrictModel):
     """Vicariotto 2023 §4.2.4: thrusters detumble μ (L826) until |μ| ≤ mu_threshold, then the wheels' (4.18)."""
 
@@ -185,7 +193,7 @@ class HierarchicalSpec(StrictModel):
 
 AttitudeLawSpec = Annotated[
     Union[QuaternionPdSpec, MrpFeedbackSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec,
-          WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec],
+          WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec, QuaternionLyapunovSpec],
     Field(discriminator="law"),
 ]
 
@@ -324,7 +332,7 @@ def build_attitude_law(spec, sm):
     if isinstance(spec, BacksteppingSpec):
         return A.BacksteppingAttitude(v3(spec.K1, "K1", "axes"), v3(spec.K2, "K2", "axes"), _body(spec, sm),
                                       spec.disturbance)
-    if isinstance(spec, (WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec)):
+    if isinstance(spec, (WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec, QuaternionLyapunovSpec)):
         from sms_cli.sim.laws import momentum as L
 
         nw = len(sm.wheels)
@@ -338,11 +346,13 @@ def build_attitude_law(spec, sm):
                                     vw(spec.kd_wheels, "kd_wheels"), spec.inertia_shaping,
                                     v3(spec.kp_position, "kp_position", "axes") if pos else None,
                                     v3(spec.kd_position, "kd_position", "axes") if pos else None, spec.target_com)
-            if isinstance(spec, Se3PdSpec):
+            if isinstance(spec, (Se3PdSpec, QuaternionLyapunovSpec)):
                 pos = spec.kp_position is not None
-                return L.Se3PD(sm, v3(spec.kp, "kp", "axes"), v3(spec.kd, "kd", "axes"),
-                               v3(spec.kp_position, "kp_position", "axes") if pos else None,
-                               v3(spec.kd_position, "kd_position", "axes") if pos else None, spec.target_com)
+                law, stiffness = (L.Se3PD, v3(spec.kp, "kp", "axes")) if isinstance(spec, Se3PdSpec) else \
+                    (L.QuaternionLyapunov, float(spec.k))
+                return law(sm, stiffness, v3(spec.kd, "kd", "axes"),
+                           v3(spec.kp_position, "kp_position", "axes") if pos else None,
+                           v3(spec.kd_position, "kd_position", "axes") if pos else None, spec.target_com)
             return L.Hierarchical(sm, v3(spec.kp, "kp", "axes"), v3(spec.kd_base, "kd_base", "axes"),
                                   vw(spec.kd_wheels, "kd_wheels"), float(spec.mu_threshold), spec.inertia_shaping)
         except ValueError as exc:
