@@ -123,7 +123,8 @@ def test_compiled_loop_refuses_the_momentum_laws_and_wrench_laws_need_free_flyin
 
 
 # ---------------------------------------------------------------------------- the exact Ẇ at one state
-def _w_dot(name: str, attitude, omega, wheel_rates, lin_vel=(0.0, 0.0, 0.0), com_error=(0.0, 0.0, 0.0), stage=1):
+def _w_dot(name: str, attitude, omega, wheel_rates, lin_vel=(0.0, 0.0, 0.0), com_error=(0.0, 0.0, 0.0), stage=1,
+           ref_rpy=(0.0, 0.0, 0.0)):
     """(Ẇ by a central difference along the exact flow of the plant under the law's command, −D of the proof)."""
     import pinocchio as pin
 
@@ -139,7 +140,7 @@ def _w_dot(name: str, attitude, omega, wheel_rates, lin_vel=(0.0, 0.0, 0.0), com
     v[3:6] = omega
     v[sm.idx.wheels] = wheel_rates
     v[:3] = lin_vel
-    ref = AttitudeRef(np.array([0.0, 0.0, 0.0, 1.0]))
+    ref = AttitudeRef(np.asarray(pin.Quaternion(pin.rpy.rpyToMatrix(*ref_rpy)).coeffs()))
     if hasattr(law, "stage"):
         law.stage = stage
     if hasattr(law, "target"):
@@ -176,6 +177,15 @@ def test_w_dot_is_minus_the_dissipation_at_a_tumbling_state(name, stage):
     translates = name in ("momentum_free_flying", "momentum_se3_pd", "momentum_offset", "momentum_quaternion")
     extra = dict(lin_vel=(0.3, -0.2, 0.1), com_error=(1.0, -2.0, 0.5)) if translates else {}
     wdot, expected = _w_dot(name, **STATE, **extra, stage=stage)
+    assert abs(wdot - expected) <= 1e-8 * abs(expected)
+
+
+@pytest.mark.parametrize("name", ["momentum_free_flying", "momentum_se3_pd", "momentum_quaternion"])
+def test_w_dot_with_a_turned_reference(name):
+    """The error is taken in the body frame (R_e = R_dᵀR, q_ref⁻¹ ⊗ q): with a reference away from the identity
+    a world-frame error would break Ẇ = −D."""
+    extra = dict(lin_vel=(0.3, -0.2, 0.1), com_error=(1.0, -2.0, 0.5))
+    wdot, expected = _w_dot(name, **STATE, **extra, ref_rpy=(0.4, -0.3, 1.1))
     assert abs(wdot - expected) <= 1e-8 * abs(expected)
 
 
