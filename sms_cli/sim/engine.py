@@ -576,12 +576,10 @@ class Simulation:
         if self.thr is not None:
             tr.thruster_commanded.append(self.thr.commanded.copy())
             tr.thruster_delivered.append(self.thr.pattern_wrench)
-            tr.thrust_total.append(float(self.thr.ts.max_force @ self.thr.on) / self.thr.ts.firing_cycle)
+            tr.thrust_total.append(float(self.thr.pattern_thrust.sum()))
             tr.propellant_used.append(float(self.thr.used))
         if self._lyap_on:  # the momentum laws' own quantities: mu (Vicariotto 2023 (4.8)) and W
-            from sms_cli.dynamics.locked import locked_velocity
-
-            tr.locked.append(locked_velocity(sm, s.q, s.v, s.etadot))
+            tr.locked.append(self.att_law.locked_velocity(s.q, s.v))
             # W at the end of the last plant step, i.e. at this tick (the series has one entry per step)
             tr.lyapunov.append(float(self.lyapunov_series[-1][2]["W"]) if self.lyapunov_series else float("nan"))
 

@@ -70,14 +70,12 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
     if "thruster_commanded" in trace:  # Vicariotto 2023 Figs. 4.4d/4.5d: ideal vs delivered, thrust, propellant
         cmd, dlv = trace["thruster_commanded"], trace["thruster_delivered"]
         fig, axes = S.new(S.FULL_PX, 560, 3, 1, sharex=True)
-        for k, c in enumerate("xyz"):
-            axes[0].plot(t, cmd[:, 3 + k], lw=1.0, color=f"C{k}", label=f"ideal n{c}")
-            axes[0].step(t, dlv[:, 3 + k], where="post", lw=0.8, ls="--", color=f"C{k}", label=f"delivered n{c}")
-        axes[0].set(ylabel="torque (N m)", title="Thrusters: ideal torque vs the firings' cycle average, thrust, propellant")
-        for k, c in enumerate("xyz"):
-            axes[1].plot(t, cmd[:, k], lw=1.0, color=f"C{k}", label=f"ideal f{c}")
-            axes[1].step(t, dlv[:, k], where="post", lw=0.8, ls="--", color=f"C{k}", label=f"delivered f{c}")
-        axes[1].set(ylabel="force (N)")
+        for ax, first, sym, unit in ((axes[0], 3, "n", "torque (N m)"), (axes[1], 0, "f", "force (N)")):
+            for k, c in enumerate("xyz"):
+                ax.plot(t, cmd[:, first + k], lw=1.0, color=f"C{k}", label=f"ideal {sym}{c}")
+                ax.step(t, dlv[:, first + k], where="post", lw=0.8, ls="--", color=f"C{k}", label=f"delivered {sym}{c}")
+            ax.set(ylabel=unit)
+        axes[0].set_title("Thrusters: ideal torque vs the firings' cycle average, thrust, propellant")
         axes[2].step(t, trace["thrust_total"], where="post", lw=0.9, color="C0", label="total thrust")
         axes[2].set(ylabel="total thrust (N)")
         ax2 = axes[2].twinx()

@@ -50,10 +50,15 @@ class ThrusterDrive:
         return a.saturated
 
     @property
+    def pattern_thrust(self) -> np.ndarray:
+        """(n,) N: each thruster's thrust in the current firing pattern, averaged over its firing cycle."""
+        return self.ts.max_force * self.on / self.ts.firing_cycle
+
+    @property
     def pattern_wrench(self) -> np.ndarray:
         """[f; n] (N, N m, base joint frame) of the current firing pattern averaged over its firing cycle:
         what the modulation delivers of ``commanded`` (the two differ by the quantisation and the MIB)."""
-        return self.B @ (self.ts.max_force * self.on / self.ts.firing_cycle)
+        return self.B @ self.pattern_thrust
 
     def _breaks(self, t: float, t1: float) -> list[float]:
         T = self.ts.firing_cycle

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sms_cli.sim.attitude_math import quat_conj, quat_mul
 from sms_cli.sim.interfaces import AttitudeRef, Sensed
 
 ANG = slice(3, 6)
@@ -96,6 +97,10 @@ class _MomentumLaw:
         if self._fixed_mass:
             return self._ls
         return self._locked_shape(self.sm, q, self.sm.rigid_mass_matrix(q))
+
+    def locked_velocity(self, q, v) -> np.ndarray:
+        """μ (3,) rad/s, base frame, from the law's locked/shape quantities (cached while the mass is fixed)."""
+        return self._quantities(q).locked_velocity(np.asarray(v, float))
 
     def _X(self, ls) -> np.ndarray:
         if not self.shaping:
@@ -201,15 +206,17 @@ class FreeFlying(_MomentumLaw):
             f = R.T @ (-self.Kx @ (c - self.target) - self.Dx @ cdot)
         return np.concatenate([f, tau_c + np.cross(ls.com_base, f)])
 
-    def _translation_terms(self, ls, q, v) -> tuple[float, float, float]:
-        """(½m|ċ|² + ½ΔxᵀK_p^xΔx, ċᵀK_d^xċ, |Δx|): the translation's part of W and of its dissipation, and the
-        CoM's distance to its target (m)."""
+    def _translation_terms(self, d: dict, ls, q, v) -> float:
+        """Put the translation's part of W, ½m|ċ|² + ½ΔxᵀK_p^xΔx, in ``d["translation"]`` (and the CoM's distance
+        to its target |Δx|, m, in ``d["position_error"]`` when the PD acts); return its dissipation ċᵀK_d^xċ."""
+        d["translation"] = 0.0
         if not self.translate:
-            return 0.0, 0.0, 0.0
+            return 0.0
         R, c, cdot = self._com(ls, q, v)
         dx = c - (c if self.target is None else self.target)
-        return (0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx), float(cdot @ self.Dx @ cdot),
-                float(np.linalg.norm(dx)))
+        d["translation"] = 0.5 * ls.mass * float(cdot @ cdot) + 0.5 * float(dx @ self.Kx @ dx)
+        d["position_error"] = float(np.linalg.norm(dx))
+        return float(cdot @ self.Dx @ cdot)
 
     def actuate(self, s: Sensed, ref: AttitudeRef):
         ls, v, wd, mu, phi, gamma = self._state(s.q, s.v, ref.quat)
@@ -222,9 +229,7 @@ class FreeFlying(_MomentumLaw):
     def lyapunov_terms(self, q, v, ref_quat) -> dict:
         ls, v, wd, mu, phi, gamma = self._state(q, v, ref_quat)
         d = self._terms(ls, mu, wd, phi)
-        d["translation"], diss, dist = self._translation_terms(ls, q, v)
-        if self.translate:
-            d["position_error"] = dist
+        diss = self._translation_terms(d, ls, q, v)
         diss += float(mu @ self.Kb @ mu + wd @ self.Kw @ wd)
         d["W"] = d["locked"] + d["shape"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
@@ -302,9 +307,7 @@ class Se3PD(FreeFlying):
         w = v[ANG]
         Ib = ls.I - (ls.G * ls.J) @ ls.G.T
         d = {"rotation": 0.5 * float(w @ Ib @ w), "potential": phi}
-        d["translation"], diss, dist = self._translation_terms(ls, q, v)
-        if self.translate:
-            d["position_error"] = dist
+        diss = self._translation_terms(d, ls, q, v)
         diss += float(w @ self.Kd @ w)
         d["W"] = d["rotation"] + d["potential"] + d["translation"]
         d["dissipation"] = diss
@@ -324,9 +327,6 @@ class QuaternionLyapunov(Se3PD):
         self.k = float(k)
 
     def _potential(self, q, ref_quat) -> tuple[float, np.ndarray]:
-        from sms_cli.sim.attitude_math import quat_conj, quat_mul
-
         qe = quat_mul(quat_conj(np.asarray(ref_quat, float)), np.asarray(q[3:7], float))
         qv, q0 = qe[:3], float(qe[3])
         return self.k * float(qv @ qv), self.k * q0 * qv
-
