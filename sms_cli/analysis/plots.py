@@ -73,22 +73,28 @@ def _box(xyz_list: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return (lo + hi) / 2, span
 
 
-def _best_map(u: np.ndarray, v: np.ndarray, values: np.ndarray, lower: bool, extent: tuple[float, float, float, float],
-              cell: float) -> tuple[np.ndarray, np.ndarray]:
-    """Best finite value per cell of the (u, v) plane, and the cells holding only undefined samples."""
+def _cells(u: np.ndarray, v: np.ndarray, extent: tuple[float, float, float, float], cell: float
+           ) -> tuple[np.ndarray, tuple[int, int]]:
+    """Flat index of the cell of the (u, v) plane each sample projects into, and the grid shape (nv, nu)."""
     u0, u1, v0, v1 = extent
     nu, nv = max(1, int(round((u1 - u0) / cell))), max(1, int(round((v1 - v0) / cell)))
     iu = np.clip(((u - u0) / (u1 - u0) * nu).astype(int), 0, nu - 1)
     iv = np.clip(((v - v0) / (v1 - v0) * nv).astype(int), 0, nv - 1)
-    flat = iv * nu + iu
+    return iv * nu + iu, (nv, nu)
+
+
+def _best_map(flat: np.ndarray, shape: tuple[int, int], values: np.ndarray, lower: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Best finite value per cell (``flat``: each sample's cell, :func:`_cells`), and the cells holding
+    only undefined samples."""
+    size = shape[0] * shape[1]
     ok = np.isfinite(values)
-    best = np.full(nu * nv, np.inf if lower else -np.inf)
+    best = np.full(size, np.inf if lower else -np.inf)
     (np.minimum if lower else np.maximum).at(best, flat[ok], values[ok])
-    undefined = np.zeros(nu * nv, dtype=bool)
+    undefined = np.zeros(size, dtype=bool)
     undefined[flat[~ok]] = True
     best[~np.isfinite(best)] = np.nan
     undefined &= np.isnan(best)
-    return best.reshape(nv, nu), undefined.reshape(nv, nu)
+    return best.reshape(shape), undefined.reshape(shape)
 
 
 def _cell(spans: np.ndarray, n: int) -> float:
@@ -97,25 +103,87 @@ def _cell(spans: np.ndarray, n: int) -> float:
     return float(spans.max()) / across
 
 
-def _maps_row(fig, axes, xyz: np.ndarray, values: np.ndarray, column: str, norm, centre, span, cell, row_title: str = ""):
-    """The three projections of one cloud on ``axes`` (shared colour norm; ``row_title`` leads the
-    first panel's title); returns the image artist."""
-    lower = column in LOWER_IS_BETTER
-    im = None
-    for ax, (i, j, name) in zip(axes, _PLANES):
-        ext = (centre[i] - span[i] / 2, centre[i] + span[i] / 2, centre[j] - span[j] / 2, centre[j] + span[j] / 2)
-        best, undef = _best_map(xyz[:, i], xyz[:, j], values, lower, ext, cell)
-        if undef.any():
-            grey = np.ma.masked_where(~undef, np.ones(undef.shape))
-            ax.imshow(grey, origin="lower", extent=ext, cmap=_grey_cmap(), vmin=0, vmax=1, interpolation="nearest",
-                      aspect="equal")
-        im = ax.imshow(best, origin="lower", extent=ext, norm=norm, interpolation="nearest", aspect="equal")
-        ax.set_xlabel(f"{'xyz'[i]} (m)")
-        ax.set_ylabel(f"{'xyz'[j]} (m)", labelpad=3)
-        ax.set_title(f"{row_title}{name}" if row_title and ax is axes[0] else f"{name} projection")
-        ax.grid(False)
-        ax.locator_params(nbins=5)
-    return im
+class _Maps:
+    """The XY, XZ and YZ maps of one or more point clouds (a row of three panels each, one colour bar),
+    built once and redrawn for each index column: the layout, projections, extents, axes and their
+    ticks do not depend on the column; only the images, the colour scale, the titles and the notes do.
+    The axes are drawn once (:class:`figstyle.Redraw`); a figure drawn after others is, byte for byte,
+    the figure a fresh one draws (``tests/test_analysis_plots.py``)."""
+
+    def __init__(self, xyz_list: list[np.ndarray], n: int):
+        from matplotlib.colors import Normalize
+
+        self.centre, self.span = _box(xyz_list)
+        self.fig, self.axes = _cloud_figure(self.span, len(xyz_list))
+        cell = _cell(self.span, n)
+        self.cells = []  # per row and plane: flat cell index of each sample, grid shape
+        self.images = []  # per row and plane: [best-value image, undefined-cells image or None]
+        for row, xyz in zip(self.axes, xyz_list):
+            cells, images = [], []
+            for ax, (i, j, name) in zip(row, _PLANES):
+                c, s = self.centre, self.span
+                ext = (c[i] - s[i] / 2, c[i] + s[i] / 2, c[j] - s[j] / 2, c[j] + s[j] / 2)
+                flat, shape = _cells(xyz[:, i], xyz[:, j], ext, cell)
+                cells.append((flat, shape))
+                im = ax.imshow(np.full(shape, np.nan), origin="lower", extent=ext, norm=Normalize(0, 1),
+                               interpolation="nearest", aspect="equal")
+                images.append([im, None, ext])
+                ax.set_xlabel(f"{'xyz'[i]} (m)")
+                ax.set_ylabel(f"{'xyz'[j]} (m)", labelpad=3)
+                ax.set_title(f"{name} projection")
+                ax.grid(False)
+                ax.locator_params(nbins=5)
+            self.cells.append(cells)
+            self.images.append(images)
+        W, H = self.fig.canvas.get_width_height()
+        m = _CLOUD
+        cax = S.px_axes(self.fig, W - m["right"] + 14, m["bottom"], 14, H - m["top"] - m["bottom"])
+        self.colorbar = self.fig.colorbar(self.images[-1][-1][0], cax=cax)
+        # above the bar, clear of its top tick label
+        self.note = self.fig.text((W - m["right"] + 4) / W, (H - m["top"] + 11) / H, "grey: undefined",
+                                  fontsize=S.MIN_FONT_PT, va="bottom", visible=False)
+        self.title = self.fig.suptitle("", x=0.01, y=0.99, ha="left", va="top")
+        self._redraw = S.Redraw(self.fig, self._changing)
+
+    def _changing(self) -> list:
+        """What differs between two columns, in the order a full draw paints it: per panel its images
+        (undefined cells under the values) and its frame over them, then the colour bar and the texts."""
+        out = []
+        for row, slots in zip(self.axes, self.images):
+            for ax, (values, grey, _) in zip(row, slots):
+                out += [a for a in (grey, values) if a is not None] + list(ax.spines.values())
+        return out + [self.colorbar.ax, self.note, self.title]
+
+    def draw(self, values_list: list[np.ndarray], column: str, title: str, row_titles: list[str] | None = None,
+             vlim: tuple[float, float] | None = None) -> bytes:
+        """The PNG (:func:`figstyle.render`) of ``column``: ``values_list`` holds its values per row."""
+        norm = _norm(np.concatenate(values_list), vlim)
+        lower = column in LOWER_IS_BETTER
+        for r, (row, values) in enumerate(zip(self.axes, values_list)):
+            for p, (ax, (flat, shape), slot) in enumerate(zip(row, self.cells[r], self.images[r])):
+                best, undef = _best_map(flat, shape, values, lower)
+                if slot[1] is not None and not undef.any():
+                    slot[1].remove()
+                    slot[1] = None
+                elif undef.any():
+                    grey = np.ma.masked_where(~undef, np.ones(undef.shape))
+                    if slot[1] is None:  # under the values (zorder), as if drawn first
+                        slot[1] = ax.imshow(grey, origin="lower", extent=slot[2], cmap=_grey_cmap(), vmin=0, vmax=1,
+                                            interpolation="nearest", aspect="equal", zorder=-1)
+                    else:
+                        slot[1].set_data(grey)
+                slot[0].set_data(best)
+                slot[0].set_norm(norm)
+            if row_titles is not None:
+                row[0].set_title(f"{row_titles[r]}{_PLANES[0][2]}")
+        self.colorbar.set_label(f"{SHORT.get(column, column)}\n({better(column)} is better)")
+        self.note.set_visible(any(bool((~np.isfinite(v)).any()) for v in values_list))
+        self.title.set_text(title)
+        # panel titles that change are placed by the axes' draw (clear of a y offset text): draw it all
+        return self._redraw.png() if row_titles is None else S.render(self.fig, close=False)
+
+    def close(self) -> None:
+        S.pyplot().close(self.fig)
 
 
 def _grey_cmap():
@@ -138,16 +206,6 @@ def _cloud_figure(spans: np.ndarray, rows: int):
     return S.panels(S.FULL_PX, height, rows, 3, width_ratios=ratios, **m)
 
 
-def _colorbar(fig, im, column: str, undefined: bool) -> None:
-    W, H = fig.canvas.get_width_height()
-    m = _CLOUD
-    cax = S.px_axes(fig, W - m["right"] + 14, m["bottom"], 14, H - m["top"] - m["bottom"])
-    cb = fig.colorbar(im, cax=cax)
-    cb.set_label(f"{SHORT.get(column, column)}\n({better(column)} is better)")
-    if undefined:  # above the bar, clear of its top tick label
-        fig.text((W - m["right"] + 4) / W, (H - m["top"] + 11) / H, "grey: undefined", fontsize=S.MIN_FONT_PT, va="bottom")
-
-
 def _norm(values: np.ndarray, vlim: tuple[float, float] | None):
     from matplotlib.colors import Normalize
 
@@ -156,38 +214,66 @@ def _norm(values: np.ndarray, vlim: tuple[float, float] | None):
 
 
 @S.styled
+def clouds(xyz: np.ndarray, items: list[tuple[Path, np.ndarray, str, str]],
+           vlim: tuple[float, float] | None = None) -> list[tuple[Path, bytes]]:
+    """:func:`cloud` of several index columns over the same end-effector positions, as (path, PNG bytes)
+    to write (nothing is written here): ``items`` holds (path, values, column, title) per figure.
+    The figure is built once and redrawn per column."""
+    maps = _Maps([xyz], min((len(v) for _, v, _, _ in items), default=len(xyz)))
+    try:
+        return [(Path(path), maps.draw([values], column, title, vlim=vlim)) for path, values, column, title in items]
+    finally:
+        maps.close()
+
+
 def cloud(path: Path, xyz: np.ndarray, values: np.ndarray, column: str, title: str,
           vlim: tuple[float, float] | None = None) -> Path:
     """One index over the workspace: XY, XZ and YZ maps of the best value per cell (R_sat, m)."""
-    centre, span = _box([xyz])
-    fig, axes = _cloud_figure(span, 1)
-    norm = _norm(values, vlim)
-    im = _maps_row(fig, axes[0], xyz, values, column, norm, centre, span, _cell(span, len(values)))
-    _colorbar(fig, im, column, bool((~np.isfinite(values)).any()))
-    fig.suptitle(title, x=0.01, y=0.99, ha="left", va="top")
-    return S.save(fig, path)
+    from sms_cli.results import write_bytes_atomic
+
+    [(p, png)] = clouds(xyz, [(path, values, column, title)], vlim)
+    return write_bytes_atomic(p, png)
 
 
 @S.styled
-def compare_clouds(path: Path, clouds: list[tuple[str, np.ndarray, np.ndarray]], column: str, title: str) -> Path:
+def compare_figures(clouds_: list[tuple[str, np.ndarray]], items: list[tuple[Path, list[np.ndarray], str, str]]
+                    ) -> list[tuple[Path, bytes]]:
+    """:func:`compare_clouds` of several index columns over the same variants (names and end-effector
+    positions in ``clouds_``), as (path, PNG bytes); ``items`` holds (path, values per variant, column,
+    title). The figure is built once and redrawn per column."""
+    maps = _Maps([xyz for _, xyz in clouds_], min(len(v) for _, vals, _, _ in items for v in vals))
+    out = []
+    try:
+        for path, values, column, title in items:
+            rows = []
+            for (name, _), v in zip(clouds_, values):
+                fin = v[np.isfinite(v)]
+                best = f" (best {(fin.min() if column in LOWER_IS_BETTER else fin.max()):.3g})" if fin.size else ""
+                rows.append(f"{name}{best}: ")
+            out.append((Path(path), maps.draw(list(values), column, title, row_titles=rows)))
+        return out
+    finally:
+        maps.close()
+
+
+def compare_clouds(path: Path, clouds_: list[tuple[str, np.ndarray, np.ndarray]], column: str, title: str) -> Path:
     """One index for several variants, a row of XY, XZ, YZ maps per variant, one colour scale."""
-    centre, span = _box([xyz for _, xyz, _ in clouds])
-    fig, axes = _cloud_figure(span, len(clouds))
-    norm = _norm(np.concatenate([v for _, _, v in clouds]), None)
-    cell = _cell(span, min(len(v) for _, _, v in clouds))
-    im = None
-    for row, (name, xyz, v) in zip(axes, clouds):
-        fin = v[np.isfinite(v)]
-        best = f" (best {(fin.min() if column in LOWER_IS_BETTER else fin.max()):.3g})" if fin.size else ""
-        im = _maps_row(fig, row, xyz, v, column, norm, centre, span, cell, row_title=f"{name}{best}: ")
-    _colorbar(fig, im, column, any((~np.isfinite(v)).any() for _, _, v in clouds))
-    fig.suptitle(title, x=0.01, y=0.99, ha="left", va="top")
-    return S.save(fig, path)
+    from sms_cli.results import write_bytes_atomic
+
+    [(p, png)] = compare_figures([(n, xyz) for n, xyz, _ in clouds_], [(path, [v for _, _, v in clouds_], column, title)])
+    return write_bytes_atomic(p, png)
 
 
-@S.styled
 def histograms(path: Path, rows: np.ndarray, columns: list[str], title: str) -> Path:
     """One histogram per index column (finite values between the 0.5 and 99.5 percentiles; median dashed)."""
+    from sms_cli.results import write_bytes_atomic
+
+    return write_bytes_atomic(path, histograms_png(rows, columns, title))
+
+
+@S.styled
+def histograms_png(rows: np.ndarray, columns: list[str], title: str) -> bytes:
+    """The PNG of :func:`histograms`."""
     from matplotlib.ticker import MaxNLocator
 
     cols = [c for c in columns if not c.startswith("ee_") and c != "singular"]
@@ -213,12 +299,19 @@ def histograms(path: Path, rows: np.ndarray, columns: list[str], title: str) -> 
             ax.set_ylabel("samples")
     fig.suptitle(title + ": distribution of each index over the sampled workspace", x=0.01, y=0.995, ha="left",
                  va="top")
-    return S.save(fig, path)
+    return S.render(fig)
+
+
+def slices(path: Path, slice_data: list[dict], columns: list[str], title: str) -> Path:
+    """Per index, its mean along each joint (the other joints sampled), joints on a common 0-1 axis."""
+    from sms_cli.results import write_bytes_atomic
+
+    return write_bytes_atomic(path, slices_png(slice_data, columns, title))
 
 
 @S.styled
-def slices(path: Path, slice_data: list[dict], columns: list[str], title: str) -> Path:
-    """Per index, its mean along each joint (the other joints sampled), joints on a common 0-1 axis."""
+def slices_png(slice_data: list[dict], columns: list[str], title: str) -> bytes:
+    """The PNG of :func:`slices`."""
     cols = [c for c in KEY_COLUMNS if c in columns] or [c for c in columns if not c.startswith("ee_")][:8]
     ncol = 4 if len(cols) > 4 else max(len(cols), 1)
     nrow = max(1, -(-len(cols) // ncol))
@@ -246,4 +339,4 @@ def slices(path: Path, slice_data: list[dict], columns: list[str], title: str) -
         fig.legend([h for h, _ in handles], [t for _, t in handles], loc="lower center", bbox_to_anchor=(0.5, 0),
                    ncols=min(len(handles), 6), borderaxespad=0.2, handlelength=1.6)
     fig.suptitle(title + ": index against each joint", x=0.01, y=0.995, ha="left", va="top")
-    return S.save(fig, path)
+    return S.render(fig)

@@ -85,6 +85,16 @@ def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = Non
     evaluated (a study may not fit in memory), then the plots and the modal exports are written and
     listed in ``artifacts``; without it nothing is written and ``artifacts`` is empty. results.json
     is not touched (``run_analysis`` writes the section)."""
+    from sms_cli.report.figpool import FigurePool
+
+    spec = loaded.mission.analysis or AnalysisSpec()
+    draw = out is not None and (spec.plots if plots is None else plots)
+    with FigurePool(None if draw else 0) as pool:  # its workers start now, while the samples are evaluated
+        return _study(loaded, spec, out, draw, progress, pool)
+
+
+def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, progress: bool | None, pool
+           ) -> tuple[dict, list[LinearModel]]:
     from sms_cli.analysis import plots as P
     from sms_cli.analysis.sampling import Progress
     from sms_cli.analysis.summary import Comparison, StudyStats
@@ -92,7 +102,6 @@ def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = Non
     from sms_cli.analysis.workspace import build_variants, evaluate_block, make_sampler
     from sms_cli.model import compile_system
 
-    spec = loaded.mission.analysis or AnalysisSpec()
     sm = compile_system(loaded)
     section: dict = {"defaults_used": loaded.mission.analysis is None}
     if not sm.arm:
@@ -151,8 +160,8 @@ def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = Non
     for name, comp in comps.items():
         section["comparison"][name] = comp.summary()
 
-    if out is not None and (spec.plots if plots is None else plots):
-        section["artifacts"] += [p.name for p in _plots(P, out, variants, stats, loaded.mission.name)]
+    if draw:
+        section["artifacts"] += [p.name for p in _plots(P, out, variants, stats, loaded.mission.name, pool)]
     models = []
     if spec.modal is not None:
         modal = run_modal(sm, spec, out, loaded)
@@ -163,9 +172,13 @@ def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = Non
     return section, models
 
 
-def _plots(P, out: Path, variants, stats, mission: str) -> list[Path]:
-    files = []
+def _plots(P, out: Path, variants, stats, mission: str, pool) -> list[Path]:
+    """Every workspace figure, drawn by ``pool`` (:class:`sms_cli.report.figpool.FigurePool`) and written
+    here in a fixed order: per variant its index maps, histograms and slices, then the comparisons."""
+    from sms_cli.results import write_bytes_atomic
+
     clouds = {}
+    order, heavy, light = [], [], []  # figure files in artifact order; jobs, the costly ones first
     for v in variants:
         st = stats[v.name]
         rows = st.plot.rows
@@ -174,19 +187,28 @@ def _plots(P, out: Path, variants, stats, mission: str) -> list[Path]:
             continue
         xyz = rows[:, [cols.index("ee_x"), cols.index("ee_y"), cols.index("ee_z")]]
         clouds[v.name] = (xyz, rows, cols)
-        for c in P.KEY_COLUMNS:
-            if c in cols:
-                files.append(P.cloud(out / f"analysis_{v.name}_{c}.png", xyz, rows[:, cols.index(c)], c,
-                                     f"{mission} ({v.name}): {P.LABELS.get(c, c)}, EE positions in the satellite frame"))
-        files.append(P.histograms(out / f"analysis_{v.name}_hist.png", st.res.rows, cols, f"{mission} ({v.name})"))
-        files.append(P.slices(out / f"analysis_{v.name}_slices.png", st.slices(), cols, f"{mission} ({v.name})"))
+        items = [(out / f"analysis_{v.name}_{c}.png", rows[:, cols.index(c)], c,
+                  f"{mission} ({v.name}): {P.LABELS.get(c, c)}, EE positions in the satellite frame")
+                 for c in P.KEY_COLUMNS if c in cols]
+        hist, sl = out / f"analysis_{v.name}_hist.png", out / f"analysis_{v.name}_slices.png"
+        order += [p for p, *_ in items] + [hist, sl]
+        heavy.append((P.clouds, (xyz, items)))
+        light.append((_figure, (hist, P.histograms_png, (st.res.rows, cols, f"{mission} ({v.name})"))))
+        light.append((_figure, (sl, P.slices_png, (st.slices(), cols, f"{mission} ({v.name})"))))
     if len(clouds) > 1:
-        for c in ("K_m", "mu_null_lin_norm"):
-            if all(c in cl[2] for cl in clouds.values()):
-                items = [(n, xyz, rows[:, cols.index(c)]) for n, (xyz, rows, cols) in clouds.items()]
-                files.append(P.compare_clouds(out / f"analysis_compare_{c}.png", items, c,
-                                              f"{mission}: {P.LABELS.get(c, c)} per variant (Kraiem 2022 Fig. 3.6-3.8 views)"))
-    return files
+        items = [(out / f"analysis_compare_{c}.png", [rows[:, cols.index(c)] for xyz, rows, cols in clouds.values()], c,
+                  f"{mission}: {P.LABELS.get(c, c)} per variant (Kraiem 2022 Fig. 3.6-3.8 views)")
+                 for c in ("K_m", "mu_null_lin_norm") if all(c in cl[2] for cl in clouds.values())]
+        if items:
+            order += [p for p, *_ in items]
+            heavy.append((P.compare_figures, ([(n, xyz) for n, (xyz, _, _) in clouds.items()], items)))
+    pngs = dict(item for result in pool.run(heavy + light) for item in result)
+    return [write_bytes_atomic(p, pngs[p]) for p in order]
+
+
+def _figure(path: Path, draw, args: tuple) -> list[tuple[Path, bytes]]:
+    """A one-figure job of :func:`_plots`: ``draw(*args)`` (PNG bytes) for ``path``."""
+    return [(path, draw(*args))]
 
 
 def format_analysis(section: dict) -> str:

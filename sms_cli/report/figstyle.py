@@ -9,6 +9,8 @@ nothing below ``MIN_FONT_PT``).
 :func:`render` draws a figure once, measures its text (smallest font in pixels, text boxes that
 overlap each other or leave the canvas) and writes the PNG with those measurements in tEXt chunks
 (:data:`META_KEYS`), which the report reads to size the ``<img>`` and the tests to check legibility.
+:class:`Redraw` gives the same PNG for a figure drawn many times with a few artists changed,
+redrawing only those.
 """
 
 from __future__ import annotations
@@ -149,6 +151,11 @@ def overlapping(B: np.ndarray) -> list[tuple[int, int]]:
 def measure(fig) -> dict[str, float]:
     """Draw ``fig`` and measure its text: smallest font (px), overlapping pairs, boxes off the canvas."""
     texts, B = text_boxes(fig)
+    return text_metrics(fig, texts, B)
+
+
+def text_metrics(fig, texts: list, B: np.ndarray) -> dict[str, float]:
+    """:data:`META_KEYS` of ``fig`` from its drawn ``texts`` and their boxes ``B`` (:func:`text_boxes`)."""
     w, h = fig.canvas.get_width_height()
     sizes = [t.get_fontsize() * fig.dpi / 72.0 for t in texts]
     clipped = int(np.sum((B[:, 0] < -1) | (B[:, 1] < -1) | (B[:, 2] > w + 1) | (B[:, 3] > h + 1))) if len(B) else 0
@@ -156,17 +163,77 @@ def measure(fig) -> dict[str, float]:
             "sms:text-overlaps": float(len(overlapping(B))), "sms:text-clipped": float(clipped)}
 
 
+class Redraw:
+    """A figure drawn many times where only some artists change between the drawings (the maps of
+    one point cloud for each index column): the rest is drawn once, with the changing artists
+    hidden, and kept as a background; :meth:`png` restores it, draws the changing artists over it
+    and measures their text (the text of the rest is measured once).
+
+    ``changing()`` lists the changing artists in the order a full draw paints them (the caller's
+    duty; hidden ones are skipped). Where they overlap no static artist but in that order, the PNG
+    is :func:`render`'s byte for byte (``tests/test_analysis_plots.py`` checks it)."""
+
+    def __init__(self, fig, changing):
+        self.fig = fig
+        self._changing = changing
+        self._background = None
+        self._static: list = []
+
+    def _draw_static(self) -> None:
+        shown = [(a, a.get_visible()) for a in self._changing()]
+        for a, _ in shown:
+            a.set_visible(False)
+        try:
+            texts, B = text_boxes(self.fig)
+            self._static = list(zip(texts, B))
+            self._background = self.fig.canvas.copy_from_bbox(self.fig.bbox)
+        finally:
+            for a, visible in shown:
+                a.set_visible(visible)
+
+    def png(self) -> bytes:
+        """The PNG of the figure as it is now (:func:`render`'s output; the figure stays open)."""
+        if self._background is None:
+            self._draw_static()
+        canvas = self.fig.canvas
+        canvas.restore_region(self._background)
+        renderer = canvas.get_renderer()
+        for a in self._changing():
+            if a.get_visible():
+                a.draw(renderer)
+        static = {id(t): b for t, b in self._static}
+        texts, boxes = [], []
+        for t in _drawn_texts(self.fig):
+            b = static.get(id(t))
+            if b is None:
+                e = t.get_window_extent(renderer)
+                if not (e.width > 0 and e.height > 0 and np.all(np.isfinite(e.extents))):
+                    continue
+                b = e.extents
+            texts.append(t)
+            boxes.append(b)
+        return encode(self.fig, text_metrics(self.fig, texts, np.array(boxes, dtype=float).reshape(-1, 4)))
+
+
 # ----------------------------------------------------------------- PNG output
 
 
-def render(fig) -> bytes:
-    """The PNG of ``fig`` (drawn once, 256-colour palette, text measurements in tEXt); closes it."""
+def render(fig, close: bool = True) -> bytes:
+    """The PNG of ``fig`` (drawn once, 256-colour palette, text measurements in tEXt); closes it
+    unless ``close`` is false."""
+    meta = measure(fig)
+    png = encode(fig, meta)
+    if close:
+        pyplot().close(fig)
+    return png
+
+
+def encode(fig, meta: dict[str, float]) -> bytes:
+    """The PNG of ``fig``'s canvas as last drawn, with ``meta`` (:data:`META_KEYS`) in tEXt chunks."""
     from PIL import Image, PngImagePlugin
 
-    meta = measure(fig)
     w, h = fig.canvas.get_width_height()
     im = Image.frombuffer("RGBA", (w, h), bytes(fig.canvas.buffer_rgba()), "raw", "RGBA", 0, 1).convert("RGB")
-    pyplot().close(fig)
     info = PngImagePlugin.PngInfo()
     for k in META_KEYS:
         info.add_text(k, f"{meta[k]:g}")
