@@ -61,36 +61,40 @@ def run_modal(sm, spec: AnalysisSpec, out: Path | None, loaded=None) -> list[tup
     return results
 
 
-def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, progress: bool | None = None) -> dict:
+def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, progress: bool | None = None,
+                 pool=None) -> dict:
     """Run the study of a loaded mission; return the ``analysis`` section written to results.json."""
-    return analyze_into(loaded, results_dir, plots=plots, progress=progress)[0]
+    return analyze_into(loaded, results_dir, plots=plots, progress=progress, pool=pool)[0]
 
 
 def analyze_into(loaded, results_dir: Path | str, *, plots: bool | None = None,
-                 progress: bool | None = None) -> tuple[dict, list[LinearModel]]:
+                 progress: bool | None = None, pool=None) -> tuple[dict, list[LinearModel]]:
     """``analyze_mission`` writing its files and the ``analysis`` section into ``results_dir``,
     holding the folder for the whole command (``ResultsDir.writing``)."""
     out = Path(results_dir)
     with ResultsDir(out).writing(loaded.mission.name, loaded.path):
-        section, models = analyze_mission(loaded, out, plots=plots, progress=progress)
+        section, models = analyze_mission(loaded, out, plots=plots, progress=progress, pool=pool)
         ResultsDir(out).update("analysis", section)
     return section, models
 
 
 def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = None,
-                    progress: bool | None = None) -> tuple[dict, list[LinearModel]]:
+                    progress: bool | None = None, pool=None) -> tuple[dict, list[LinearModel]]:
     """The study of a loaded mission: its ``analysis`` section and the linear models of ``analysis.modal``.
 
     With ``out`` (an existing folder) the per-sample CSV tables are streamed there as the samples are
     evaluated (a study may not fit in memory), then the plots and the modal exports are written and
     listed in ``artifacts``; without it nothing is written and ``artifacts`` is empty. results.json
-    is not touched (``run_analysis`` writes the section)."""
+    is not touched (``run_analysis`` writes the section). The figures are drawn by ``pool``
+    (:class:`sms_cli.report.figpool.FigurePool`; default: one started here)."""
     from sms_cli.report.figpool import FigurePool
 
     spec = loaded.mission.analysis or AnalysisSpec()
     draw = out is not None and (spec.plots if plots is None else plots)
-    with FigurePool(None if draw else 0) as pool:  # its workers start now, while the samples are evaluated
+    if pool is not None:
         return _study(loaded, spec, out, draw, progress, pool)
+    with FigurePool(None if draw else 0) as own:  # its workers start now, while the samples are evaluated
+        return _study(loaded, spec, out, draw, progress, own)
 
 
 def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, progress: bool | None, pool

@@ -76,11 +76,13 @@ class FigurePool:
     job whose worker fails or dies is run again in the caller (where an error raises with its
     traceback). Use as a context manager: the workers stop at its end."""
 
-    def __init__(self, workers: int | None = None, preload: Sequence[str] = ("sms_cli.analysis.plots",)):
+    def __init__(self, workers: int | None = None,
+                 preload: Sequence[str] = ("sms_cli.report.figstyle:warm_up", "sms_cli.analysis.plots")):
         n = default_workers() if workers is None else max(0, workers)
         root = str(Path(__file__).resolve().parents[2])  # the folder holding this sms_cli
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])])}
         self._procs: list[subprocess.Popen] = []
+        self._used = False
         for _ in range(n):
             try:
                 self._procs.append(subprocess.Popen(
@@ -95,6 +97,7 @@ class FigurePool:
 
     def run(self, jobs: Sequence[tuple[Callable[..., Any], tuple]]) -> list[Any]:
         """Each job's result, in job order."""
+        self._used = True
         pending = deque(range(len(jobs)))
         lock = threading.Lock()
         results: list[Any] = [None] * len(jobs)
@@ -152,7 +155,11 @@ class FigurePool:
         self._procs = []
 
     def close(self) -> None:
-        """Stop the workers (each ends when its stdin closes)."""
+        """Stop the workers (each ends when its stdin closes; one never given a job is killed: it
+        may still be importing)."""
+        if not self._used:
+            self._kill()
+            return
         for p in self._procs:
             try:
                 p.stdin.close()
@@ -188,12 +195,15 @@ def _worker(preload: Sequence[str]) -> None:
     sys.stdout = sys.stderr
     jobs = sys.stdin.buffer
     for m in preload:  # now, while the caller computes what the figures show
-        importlib.import_module(m)
+        module, _, fn = m.partition(":")
+        mod = importlib.import_module(module)
+        if fn:
+            getattr(mod, fn)()
     while True:
         try:
             fn, args = _recv(jobs)
         except EOFError:
-            return
+            break
         try:
             reply = ("ok", fn(*args))
         except Exception:  # noqa: BLE001 - the caller runs the job again and raises its error
@@ -201,7 +211,9 @@ def _worker(preload: Sequence[str]) -> None:
         try:
             _send(channel, reply)
         except BrokenPipeError:
-            return
+            break
+    sys.stderr.flush()
+    os._exit(0)  # nothing to finish (no file written): skip the interpreter's teardown, the caller waits for it
 
 
 if __name__ == "__main__":

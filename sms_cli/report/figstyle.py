@@ -55,6 +55,17 @@ def pyplot():
     return plt
 
 
+def warm_up() -> None:
+    """Import matplotlib and PIL and draw a small figure with mathtext, so that the first real figure
+    of this process does not pay for them (a figure worker does this while its caller computes)."""
+    import PIL.PngImagePlugin  # noqa: F401
+
+    with pyplot().rc_context(STYLE):
+        fig = new_figure(120, 40)
+        fig.text(0.05, 0.3, r"$K^m_{\omega_0}$ (m)")
+        render(fig)
+
+
 def styled(fn: F) -> F:
     """Run a plotting function under :data:`STYLE` (the caller's rcParams are left as they were)."""
 
@@ -123,8 +134,31 @@ def _drawn_texts(fig) -> list:
     return [t for t in shown + others if t.get_text().strip()]
 
 
+_RENDERERS: dict[tuple, Any] = {}  # (width px, height px, dpi) → the Agg renderer figures of that size share
+_MAX_RENDERERS = 8
+
+
+def _shared_renderer(canvas) -> None:
+    """Give an Agg canvas this process's renderer for its size (as ``FigureCanvasAgg.get_renderer``
+    would make one): text metrics and parsed mathtext are cached per renderer, so the figures of one
+    size (the index maps, the histograms of each variant) measure and parse their labels once, not
+    once per figure. A figure's pixels are read (:func:`encode`) before another is drawn."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+
+    if type(canvas) is not FigureCanvasAgg:
+        return
+    w, h = canvas.get_width_height(physical=True)
+    key = (w, h, canvas.figure.dpi)
+    r = _RENDERERS.pop(key, None) or RendererAgg(w, h, canvas.figure.dpi)
+    _RENDERERS[key] = r  # most recent last
+    while len(_RENDERERS) > _MAX_RENDERERS:
+        _RENDERERS.pop(next(iter(_RENDERERS)))
+    canvas.renderer, canvas._lastKey = r, key
+
+
 def text_boxes(fig) -> tuple[list, np.ndarray]:
     """Draw ``fig``; its drawn texts and their boxes (x0, y0, x1, y1 in image px)."""
+    _shared_renderer(fig.canvas)
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     texts, boxes = [], []
