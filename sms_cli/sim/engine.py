@@ -334,27 +334,28 @@ class Simulation:
     def run(self) -> SimResult:
         """Run the mission with the engine ``simulation.engine`` asks for (see SimulationSpec)."""
         self.check_engine()
+        self._warm_up()  # the first run after an install compiles the kernels (cached afterwards)
         if self.compiled_loop:
             from sms_cli.sim.compiled.runner import CompiledSimulation
 
             return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
         return self.run_python()
 
+    def _warm_up(self) -> None:
+        """Load (on a cold cache: compile, in parallel) the kernels this loop calls: the compiled plant
+        (and its joint-stop kernels) and the recording's (``sms_cli.sim.compiled.kernels``)."""
+        from sms_cli.sim.compiled.kernels import kernel_groups
+        from sms_cli.sim.compiled.warmup import warm
+
+        groups = kernel_groups(self.sm, self.spec, self.att_spec, record=self.rec is not None)
+        if groups:
+            warm(groups)
+
     # ------------------------------------------------------------------ main loop
     def run_python(self) -> SimResult:
         """The reference loop in Python (every feature)."""
         sm, spec = self.sm, self.spec
         s = State(sm.q0.copy(), sm.v0.copy(), sm.eta0.copy(), sm.etadot0.copy())
-        if self.plant is not None:
-            from sms_cli.sim.compiled.runner import compile_notice
-
-            with compile_notice():  # loads (on a cold cache: compiles) the plant kernel
-                self.plant.step(s, np.zeros(sm.nv), self.dt)
-                if self.stops is not None:  # and the joint-stop kernels
-                    cols = self.stops.table.v_index[:1]
-                    self.plant.accel(s, np.zeros(sm.nv))
-                    self.plant.inverse_mass_columns(s.q, cols)
-                    self.plant.step(s, np.zeros(sm.nv), self.dt, cols)
         trace = Trace()
         t = 0.0
         steps = 0

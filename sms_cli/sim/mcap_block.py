@@ -225,3 +225,15 @@ def encode_records(lit, lit_start, lit_len, code, piece_start, values, channels,
                     vi += 1
             _write_uint(out, start + 1, pos - start - 9, 8)  # record length: everything after opcode + length
     return pos
+
+
+def warm_call():
+    """The ``encode_records`` call of a one-sample block, for ``sms_cli.sim.compiled.warmup``
+    (the argument types of ``McapRecorder.write_block``'s call)."""
+    from sms_cli.sim.compiled.warmup import KernelCall
+
+    tpl = Templates([b"%.12g %d"])
+    return KernelCall("sms_cli.sim.mcap_block:encode_records",
+                      (tpl.lit, tpl.lit_start, tpl.lit_len, tpl.code, tpl.piece_start, np.zeros((1, 2)),
+                       np.zeros(1, dtype=np.int64), 0, np.zeros(1, dtype=np.int64), np.empty(tpl.capacity(1), np.uint8),
+                       np.empty(1, dtype=np.int64)), cost=1.6)

@@ -33,6 +33,13 @@ class RecordBuffer:
         self.link_fids = [sm.link_frames[n] for n in sm.link_parents]
         self._rows: list[tuple] = []
 
+    def warm_calls(self) -> list:
+        """The recording's kernel calls (one group), for ``sms_cli.sim.compiled.warmup.warm``: the
+        block kinematics (when compiled) and the message encoding."""
+        from sms_cli.sim.mcap_block import warm_call
+
+        return [([self.kinematics.warm_call()] if self.kinematics is not None else []) + [warm_call()]]
+
     def __len__(self) -> int:
         return len(self._rows)
 

@@ -129,14 +129,16 @@ def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
         compose(place_R[i], place_p[i], Rj, tj, R_out[i], p_out[i])
 
 
-@njit(**_HOT)
+@njit(**_JIT)
 def world_placements(parent, R_rel, p_rel, oR, op):
     """World placement of each joint frame from the parent-relative ones (parents come first)."""
     for i in range(parent.shape[0]):
         pi = parent[i]
-        if pi < 0:
-            oR[i] = R_rel[i]
-            op[i] = p_rel[i]
+        if pi < 0:  # element loops, not slice assignment: no broadcast check to compile
+            for a in range(3):
+                op[i, a] = p_rel[i, a]
+                for b in range(3):
+                    oR[i, a, b] = R_rel[i, a, b]
         else:
             compose(oR[pi], op[pi], R_rel[i], p_rel[i], oR[i], op[i])
 
@@ -150,13 +152,17 @@ def frame_poses(oR, op, f_joint, f_R, f_p, out):
     for k in range(f_joint.shape[0]):
         j = f_joint[k]
         if j < 0:
-            R[:, :] = f_R[k]
-            p[:] = f_p[k]
+            for a in range(3):
+                p[a] = f_p[k, a]
+                for b in range(3):
+                    R[a, b] = f_R[k, a, b]
         else:
             compose(oR[j], op[j], f_R[k], f_p[k], R, p)
         matrix_to_quat(R, quat)
-        out[k, 0:3] = p
-        out[k, 3:7] = quat
+        for a in range(3):
+            out[k, a] = p[a]
+        for a in range(4):
+            out[k, 3 + a] = quat[a]
 
 
 @njit(**_JIT)
@@ -167,7 +173,8 @@ def relative_poses(world, parent, out):
     for k in range(world.shape[0]):
         p = parent[k]
         if p < 0:
-            out[k] = world[k]
+            for a in range(7):
+                out[k, a] = world[k, a]
             continue
         ux, uy, uz, w = -world[p, 3], -world[p, 4], -world[p, 5], world[p, 6]
         dx, dy, dz = world[k, 0] - world[p, 0], world[k, 1] - world[p, 1], world[k, 2] - world[p, 2]
@@ -285,7 +292,7 @@ def workspace(n, nq, nv, ne=0):
             np.empty((nv, nv)), np.empty((nv, nv)), np.empty(nv))
 
 
-@njit(**_HOT)
+@njit(**_JIT)
 def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
     """Spatial velocity of each body in its joint frame."""
     n = parent.shape[0]
@@ -327,7 +334,7 @@ def _solve_spd6(A, b, L, out):
         out[i] = x / L[i, i]
 
 
-@njit(**_HOT)
+@njit(**_JIT)
 def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
@@ -416,7 +423,7 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             acc6[i, a] += S[a] * qdd
 
 
-@njit(**_HOT)
+@njit(**_JIT)
 def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, out, ws):
     """out = [p (3), k about the CoM (3), k about the world origin (3), kinetic energy (J)], world frame."""
     vel, oR, op, f, fw = ws[0], ws[16], ws[17], ws[13], ws[14]
@@ -648,7 +655,6 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
 
 
-aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
 
 
 # ----------------------------------------------------------------------------- joint stops
@@ -671,7 +677,7 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
         for a in range(nv):
             unit[a] = 0.0
         unit[cols[j]] = 1.0
-        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
+        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
         for a in range(nv):
             G[a, j] = col[a]
         for k in range(ne):

@@ -45,3 +45,13 @@ class SampleKinematics:
         sample_outputs(*self.tree, *self.frames, np.ascontiguousarray(qs, dtype=float),
                        np.ascontiguousarray(vs, dtype=float), world, rel, mom)
         return world, rel, mom
+
+    def warm_call(self):
+        """This object's ``sample_outputs`` call on one throw-away sample (``sms_cli.sim.compiled.warmup``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        n = len(self.frames[0])
+        q, v = self.sm.q0.astype(float)[None].copy(), np.zeros((1, self.sm.nv))
+        return KernelCall("sms_cli.sim.compiled.loop:sample_outputs",
+                          (*self.tree, *self.frames, q, v, np.empty((1, n, 7)), np.empty((1, n, 7)), np.empty((1, 10))),
+                          cost=5.0)

@@ -18,7 +18,7 @@ from numba import njit
 from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
                                           limited_torque, may_reach_limit, mrp_feedback)
-from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transforms, momenta_energy, relative_poses,
+from sms_cli.sim.compiled.dynamics import (aba, frame_poses, joint_transforms, momenta_energy, relative_poses,
                                            rkmk4_step, workspace, world_placements)
 
 RUNNING, SETTLED, NON_FINITE, RATE_LIMIT = 0, 1, 2, 3
@@ -38,7 +38,7 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_
     for k in range(wheel_v.shape[0]):
         tau[:] = 0.0
         tau[wheel_v[k]] = 1.0
-        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
+        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
                  col, ws)
         out[k] = 1.0 / col[wheel_v[k]]
 
@@ -142,12 +142,14 @@ def run_ticks(
                     tau[wheel_v[i]] = tau_applied[i]
             rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, no_e, no_e,
                        no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work)
-            q[:] = q_new
-            v[:] = v_new
             t += dt
             st_t[steps] = t
-            st_q[steps] = q
-            st_v[steps] = v
+            for a in range(nq):  # element loops, not slice assignment: no broadcast check to compile
+                q[a] = q_new[a]
+                st_q[steps, a] = q_new[a]
+            for a in range(nv):
+                v[a] = v_new[a]
+                st_v[steps, a] = v_new[a]
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
             steps += 1

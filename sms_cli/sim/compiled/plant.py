@@ -101,6 +101,26 @@ class CompiledPlant:
         return G
 
 
+    def warm_calls(self, stops: bool = False) -> list:
+        """This plant's kernel calls on throw-away states, for ``sms_cli.sim.compiled.warmup.warm``:
+        the step (its locked-joint form has the same types) and, with joint stops, the free
+        accelerations and the M⁻¹ columns. One group: they share ABA, compiled once."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        sm = self.sm
+        q, v, eta, ed = sm.q0.astype(float).copy(), np.zeros(sm.nv), np.zeros(sm.n_modes), np.zeros(sm.n_modes)
+        tau = np.zeros(sm.nv)
+        mod = "sms_cli.sim.compiled.dynamics"
+        calls = [KernelCall(f"{mod}:rkmk4_step", (*self._tree, *self._modal, *self._springs, q, v, eta, ed, tau, 0.01,
+                                                  q.copy(), v.copy(), eta.copy(), ed.copy(), self._ws, _NONE), cost=9.0)]
+        if stops:
+            calls += [KernelCall(f"{mod}:accelerations", (*self._tree, *self._modal, *self._springs, q, v, eta, ed, tau,
+                                                          np.empty(sm.nv), np.empty(sm.n_modes), self._ws), cost=1.5),
+                      KernelCall(f"{mod}:inverse_mass_columns", (*self._tree, self._modal[0], q, _indices([0]),
+                                                                 np.empty((sm.nx, 1)), self._ws), cost=2.0)]
+        return [calls]
+
+
 _NONE = np.zeros(0, dtype=np.int64)
 
 

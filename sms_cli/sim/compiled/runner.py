@@ -10,9 +10,7 @@ progress bar moves and Ctrl-C is honoured between slices (numba code cannot be i
 from __future__ import annotations
 
 import sys
-import threading
 import time
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -25,22 +23,6 @@ from sms_cli.sim.schema import SimulationSpec
 from sms_cli.sim.timing import records_base_wrench
 
 CHUNK_STEPS = 20_000
-COMPILE_NOTICE_AFTER_S = 1.0
-
-
-@contextmanager
-def compile_notice(after_s: float = COMPILE_NOTICE_AFTER_S):
-    """Say on stderr why the first run pauses: numba compiles the kernels on the first run after an
-    install (about half a minute on two cores) and caches them; later runs load them at once."""
-    timer = threading.Timer(after_s, lambda: (sys.stderr.write(
-        "  compiling the simulation kernels (first run after an install only; they are cached)...\n"),
-        sys.stderr.flush()))
-    timer.daemon = True
-    timer.start()
-    try:
-        yield
-    finally:
-        timer.cancel()
 
 
 def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str | None:
@@ -115,7 +97,9 @@ class CompiledSimulation:
     def _law_args(self):
         law = self.law
         if law is None:
-            return (np.eye(3), np.zeros((3, 0)), np.zeros(0), 0.0, 0.0, -1.0, np.inf, 0, np.zeros(3))
+            from sms_cli.sim.compiled.kernels import NO_LAW
+
+            return NO_LAW
         b = law.body
         return (np.ascontiguousarray(b.J, dtype=float), np.ascontiguousarray(b.G, dtype=float),
                 np.ascontiguousarray(b.Js, dtype=float), law.K, law.P, law.Ki, law.integral_limit, law.law_type,
@@ -144,8 +128,6 @@ class CompiledSimulation:
         spans: list[tuple[int, float, float]] = []
         pieces: list[dict] = []
         last_T = np.zeros(3)
-        with compile_notice():  # the first calls compile the kernels on a cold cache
-            self._warm_up()
         if self.rec is not None:  # the initial state is part of the recording
             self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
                          np.zeros((1, 6)) if self.record_wrench else None)
@@ -224,25 +206,6 @@ class CompiledSimulation:
                            "phase": np.array([len(spec.phases) - 1])})
         trace = self._trace_arrays(pieces, nw)
         return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
-
-    def _warm_up(self) -> None:
-        """Load (or, on a cold cache, compile) every kernel the run calls, on throw-away data."""
-        from sms_cli.sim.compiled.loop import run_ticks
-        from sms_cli.sim.mcap_block import Templates, encode_records
-
-        sm, nw = self.sm, self.wheels.n
-        q, v = sm.q0.astype(float).copy(), np.zeros(sm.nv)
-        self._samples(q[None], v[None])
-        e1, e2 = np.empty(1), np.empty((1, nw))
-        run_ticks(*self._tree_args(), np.asarray(sm.idx.wheels, dtype=np.int64), np.zeros((nw, 3)), np.zeros((nw, nw)),
-                  np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0, False, False, np.inf, *self._law_args(),
-                  q[3:7].copy(), -1.0, 0.0, 0.0, 1.0, 1, 0, 0, 1e9, q, v, np.zeros(4), np.ones(nw), np.array([np.nan]),
-                  e1, e1, e2, e2, np.empty(1, dtype=np.bool_), np.empty((1, 3)), np.empty((1, 6)), e1,
-                  e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2)
-        tpl = Templates([b"%.12g %d"])
-        encode_records(tpl.lit, tpl.lit_start, tpl.lit_len, tpl.code, tpl.piece_start, np.zeros((1, 2)),
-                       np.zeros(1, dtype=np.int64), 0, np.zeros(1, dtype=np.int64), np.empty(tpl.capacity(1), np.uint8),
-                       np.empty(1, dtype=np.int64))
 
     @staticmethod
     def _trace_arrays(pieces: list[dict], nw: int) -> dict[str, np.ndarray]:

@@ -1,0 +1,120 @@
+"""The kernel warm-up (sms_cli.sim.compiled.warmup, .kernels): lanes, the worker process, and the
+claim that the warm-up calls have the real calls' argument types (the run compiles nothing more)."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sms_cli.sim.compiled.warmup import KernelCall, split, warm
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_split_is_longest_first_and_keeps_group_order():
+    a, b, c, d = (KernelCall(f"m:{n}", (), cost=w) for n, w in (("a", 1.0), ("b", 5.0), ("c", 2.0), ("d", 3.0)))
+    plan = split([[a, c], [b], [d]], 2)  # costs 3, 5, 3: b alone, then the two 3s share the other lane... in order
+    assert plan[0] == [b] or plan[1] == [b]
+    other = plan[1] if plan[0] == [b] else plan[0]
+    assert sorted(k.kernel for k in other) == ["m:a", "m:c", "m:d"]
+    assert other.index(a) < other.index(c)  # a group stays in its order (callees before callers)
+    assert split([[a], [b]], 1) == [[b, a]]
+
+
+TOY = textwrap.dedent('''
+    from numba import njit
+
+    @njit(cache=True)
+    def double_into(x, out):
+        for i in range(x.shape[0]):
+            out[i] = 2.0 * x[i]
+
+    @njit(cache=True)
+    def add_into(x, y, out):
+        for i in range(x.shape[0]):
+            out[i] = x[i] + y[i]
+''')
+
+
+def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path, monkeypatch):
+    """Two groups on two lanes: the second compiles in a worker process; this process then loads it
+    from the cache (a hit, no compilation of its own)."""
+    import numba
+
+    pkg = tmp_path / "src"
+    pkg.mkdir()
+    (pkg / "sms_toy_kernels.py").write_text(TOY)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache))
+    monkeypatch.setenv("PYTHONPATH", str(pkg))
+    monkeypatch.syspath_prepend(str(pkg))
+    import sms_toy_kernels as toy
+
+    x = np.arange(3.0)
+    first = KernelCall("sms_toy_kernels:double_into", (x, np.empty(3)), cost=2.0)
+    second = KernelCall("sms_toy_kernels:add_into", (x, x, np.empty(3)), cost=1.0)
+    log = io.StringIO()
+    report = warm([[first], [second]], lanes=2, stream=log)
+    assert report == {"compiled": 2, "lanes": 2, "seconds": report["seconds"]}
+    assert "compiling 2 simulation kernels on 2 cores" in log.getvalue()
+    assert "add_into" in log.getvalue() and "double_into" in log.getvalue()
+    assert toy.add_into.stats.cache_hits and not toy.add_into.stats.cache_misses  # the worker's machine code
+    assert toy.double_into.stats.cache_misses  # compiled here, in lane 0
+    again = warm([[first], [second]], lanes=2, stream=io.StringIO())
+    assert again["compiled"] == 0 and again["lanes"] == 0  # all cached: nothing said, nothing compiled
+
+
+SIGNATURES = textwrap.dedent('''
+    import json, sys
+    from pathlib import Path
+    from sms_cli.mission.load import load_mission
+    from sms_cli.model import compile_system
+    from sms_cli.sim.compiled.kernels import kernel_groups
+    from sms_cli.sim.compiled.warmup import warm
+    from sms_cli.sim.engine import Simulation
+    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.sim.stage import planned_simulation
+    from sms_cli.model.summary import model_summary
+    import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.sim.mcap_block as B
+
+    loaded = load_mission(sys.argv[1])
+    sm = compile_system(loaded)
+    spec, _ = planned_simulation(sm, loaded)
+    spec = spec.model_copy(update={"phases": spec.phases[:1]})
+    warm(kernel_groups(sm, spec, spec.attitude, record=True))
+    kernels = [getattr(m, n) for m in (D, L, B) for n in dir(m) if hasattr(getattr(m, n), "signatures")]
+    before = {k.py_func.__name__: len(k.signatures) for k in kernels}
+    rec = McapRecorder(Path(sys.argv[2]), mission_text=loaded.text, mission_name=loaded.mission.name,
+                       model_summary=model_summary(sm), urdf_text=sm.urdf_text, versions={}, record_rate_hz=spec.record_rate)
+    links = list(sm.link_parents)
+    rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
+    with rec:
+        res = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent).run()
+        rec.finish(res.status)
+    after = {k.py_func.__name__: len(k.signatures) for k in kernels}
+    print(json.dumps({"engine": res.timing["engine"], "new": {n: after[n] - before[n] for n in after if after[n] != before[n]}}))
+''')
+
+
+@pytest.mark.parametrize("mission, engine", [("basilisk_rw_reference", "compiled"),
+                                             ("astrobee_arm", "python, compiled plant")])
+def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
+    """Every kernel the run calls was called by the warm-up with the same argument types: no
+    dispatcher gains a signature during the run (the compiled loop; the Python loop with the
+    compiled plant, joint stops and a recording)."""
+    script = tmp_path / "sigs.py"
+    script.write_text(SIGNATURES)
+    out = subprocess.run([sys.executable, str(script), str(ROOT / "missions" / f"{mission}.yaml"), str(tmp_path / "r.mcap"),
+                          str(tmp_path)], capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["engine"] == engine
+    assert got["new"] == {}
