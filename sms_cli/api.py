@@ -245,14 +245,14 @@ def _variant(name: str, v: dict[str, Any]) -> VariantIndices:
 
 
 def analyze(mission: MissionLike, out: PathLike | None = None, *, plots: bool | None = None,
-            progress: bool = False) -> AnalysisResult:
+            progress: bool = False, csv: bool = False) -> AnalysisResult:
     """Workspace study of the mission's ``analysis:`` section (defaults when it has none), as ``sms analyze``:
     kinematic indices per sampled arm configuration and per design variant, and the linear
     models of ``analysis.modal``.
 
-    ``out``: a results folder; the per-sample CSV tables are then streamed there, and the plots
-    (``plots``: default as the mission says) and the modal exports (``.npz``/``.mat``) written, as
-    ``sms analyze -o`` does. Without it nothing is written (the per-sample values are then only
+    ``out``: a results folder; the per-sample tables (``analysis_<variant>.parquet``; ``.csv`` too
+    with ``csv``, as ``--csv``) are then streamed there, and the plots (``plots``: default as the
+    mission says) and the modal exports (``.npz``/``.mat``) written, as ``sms analyze -o`` does. Without it nothing is written (the per-sample values are then only
     summarised: ``IndexStats``, ``best``). ``progress``: a progress bar on stderr.
     Raises ``InputError``.
     """
@@ -262,7 +262,7 @@ def analyze(mission: MissionLike, out: PathLike | None = None, *, plots: bool | 
     if folder is None:
         data, models = analyze_mission(loaded, None, plots=plots, progress=progress)
     else:
-        data, models = analyze_into(loaded, folder, plots=plots, progress=progress)
+        data, models = analyze_into(loaded, folder, plots=plots, progress=progress, csv=csv)
     section = _plain(data)
     return AnalysisResult(section["samples"], section["method"],
                           {n: _variant(n, v) for n, v in section["variants"].items()},

@@ -240,8 +240,15 @@ def analyze_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="print the analysis section as JSON")] = False,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the PNG plots (default: as the mission says)")] = True,
     progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar on stderr (default: when a terminal)")] = None,
+    csv: Annotated[bool, typer.Option("--csv", help=(
+        "also write the per-sample tables as analysis_<variant>.csv (default: Parquet only, "
+        "analysis_<variant>.parquet; the mission's analysis.table: [parquet, csv] asks for both on every run)"))] = False,
 ) -> None:
     """Workspace maps, kinematic indices (manipulability, K^m/K^r, null-motion, momentum), variants and modal analysis.
+
+    Writes per variant analysis_<variant>.parquet (one row per sample: column sample, the joint
+    coordinates q_<joint> and every index, SI, NaN where undefined; .csv with --csv), the plots,
+    the modal exports and the analysis section of results.json.
 
     Example:
 
@@ -257,7 +264,7 @@ def analyze_cmd(
             from sms_cli.mission.load import load_mission
 
             data = run_analysis(load_mission(mission), default_out(mission, out), plots=None if plots else False,
-                                progress=progress, pool=pool)
+                                progress=progress, pool=pool, csv=csv)
         emit(data, as_json, format_analysis)
         return 0
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import csv
 import json
 
+import pyarrow.parquet as pq
 import pytest
 import yaml
 
@@ -36,9 +36,9 @@ def test_analyze_every_robot(name, tmp_path):
     r = run_cli("analyze", path, "-o", out, "--no-plots")
     assert r.exit_code == 0, r.output
     sec = json.loads((out / "results.json").read_text())["analysis"]
-    with open(out / "analysis_nominal.csv") as fh:
-        rows = list(csv.reader(fh))
-    assert len(rows) == sec["samples"] + 1 and rows[0][0] == "sample"
+    table = pq.read_table(out / "analysis_nominal.parquet")
+    assert table.num_rows == sec["samples"] and table.column_names[0] == "sample"
+    assert not (out / "analysis_nominal.csv").exists()  # CSV only when asked for (--csv, analysis.table)
     assert sec["variants"]["nominal"]["indices"]["mu_gjm"]["max"] > 0
 
 

@@ -270,9 +270,10 @@ def test_out_writes_the_files_the_cli_writes(stage, tmp_path):
         same_bytes = ["budget.csv"]
     elif stage == "analyze":
         mission = analysis_mission(tmp_path)
-        cli, api, cli_json, res = _cli_and_api(["analyze", mission, "--no-progress"], lambda o: sms.analyze(mission, out=o),
-                                               tmp_path, stage)
-        same_bytes = ["analysis_nominal.csv", "analysis_doubled_wheels.csv", "modal_0.npz", "modal_1.npz"]
+        cli, api, cli_json, res = _cli_and_api(["analyze", mission, "--no-progress", "--csv"],
+                                               lambda o: sms.analyze(mission, out=o, csv=True), tmp_path, stage)
+        same_bytes = ["analysis_nominal.parquet", "analysis_doubled_wheels.parquet", "analysis_nominal.csv",
+                      "analysis_doubled_wheels.csv", "modal_0.npz", "modal_1.npz"]
     elif stage == "synthesize":
         mission = MISSIONS / "caldera_s1_synthesized.yaml"
         cli, api, cli_json, res = _cli_and_api(["synthesize", mission], lambda o: sms.synthesize(mission, out=o),

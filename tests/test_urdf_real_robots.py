@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+import pyarrow.parquet as pq
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -272,12 +273,8 @@ def test_kinematics_only_fixed_manipulability_equals_the_real_robots(tmp_path):
         (d / "robot.urdf").write_text(sc3(*TOOL0, l3=l3))
         (d / "m.yaml").write_text(KIN_MISSION.replace("plots: false, table: false", "plots: false, table: true"))
         assert run_cli("analyze", d / "m.yaml", "-o", d / "out").exit_code == 0
-        out[label] = (d / "out" / "analysis_nominal.csv").read_text().splitlines()
-    head = out["placeholder"][0].split(",")
-    col = head.index("mu_fixed")
-    a = np.array([float(r.split(",")[col]) for r in out["placeholder"][1:]])
-    head_real = out["real"][0].split(",")
-    b = np.array([float(r.split(",")[head_real.index("mu_fixed")]) for r in out["real"][1:]])
+        out[label] = pq.read_table(d / "out" / "analysis_nominal.parquet", columns=["mu_fixed"])["mu_fixed"].to_numpy()
+    a, b = out["placeholder"], out["real"]
     assert a.size == 125 and np.allclose(a, b, rtol=1e-12, atol=0)
 
 

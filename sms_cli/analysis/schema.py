@@ -118,7 +118,9 @@ class AnalysisSpec(StrictModel):
         1e-3, gt=0, lt=1, description="a sample is singular when sigma_min/sigma_max of J*_mEE is below this")
     best: int = Field(5, ge=0, le=100, description="best configurations reported per index")
     modal: ModalSpec | None = None
-    table: bool = Field(True, description="write one CSV row per sample")
+    table: bool | list[Literal["parquet", "csv"]] = Field(
+        True, description="per-sample tables analysis_<variant>.parquet|.csv (one row per sample): true = Parquet, "
+                          "false = none, or the formats, e.g. [parquet, csv] (sms analyze --csv adds CSV for one run)")
     plots: bool = Field(True, description="write the workspace plots")
 
     @model_validator(mode="after")
@@ -127,6 +129,11 @@ class AnalysisSpec(StrictModel):
         if "nominal" in names or len(set(names)) != len(names):
             raise ValueError("variant names must be unique and not 'nominal'")
         return self
+
+    def table_formats(self, csv: bool = False) -> tuple[str, ...]:
+        """The formats of the per-sample tables (``csv``: CSV asked for on the command line as well)."""
+        formats = ("parquet",) if self.table is True else () if self.table is False else tuple(self.table)
+        return tuple(f for f in ("parquet", "csv") if f in formats or (csv and f == "csv"))
 
     def groups(self) -> tuple[str, ...]:
         """The selected index groups, in canonical order."""

@@ -1,6 +1,7 @@
 """``sms analyze``: workspace study (indices per sample, per variant), plots, table, modal analysis.
 
-Writes into the results folder: ``analysis_<variant>.csv`` (one row per sample), PNG plots
+Writes into the results folder: ``analysis_<variant>.parquet`` (one row per sample; ``.csv`` as
+well or instead when the mission's ``analysis.table`` or ``--csv`` asks), PNG plots
 ``analysis_<variant>_<index>.png`` / ``_hist.png`` / ``_slices.png``, ``analysis_compare_<index>.png``,
 ``modal_<k>.npz|.mat``, and the ``analysis`` section of results.json.
 """
@@ -62,27 +63,28 @@ def run_modal(sm, spec: AnalysisSpec, out: Path | None, loaded=None) -> list[tup
 
 
 def run_analysis(loaded, results_dir: Path | str, *, plots: bool | None = None, progress: bool | None = None,
-                 pool=None) -> dict:
+                 pool=None, csv: bool = False) -> dict:
     """Run the study of a loaded mission; return the ``analysis`` section written to results.json."""
-    return analyze_into(loaded, results_dir, plots=plots, progress=progress, pool=pool)[0]
+    return analyze_into(loaded, results_dir, plots=plots, progress=progress, pool=pool, csv=csv)[0]
 
 
 def analyze_into(loaded, results_dir: Path | str, *, plots: bool | None = None,
-                 progress: bool | None = None, pool=None) -> tuple[dict, list[LinearModel]]:
+                 progress: bool | None = None, pool=None, csv: bool = False) -> tuple[dict, list[LinearModel]]:
     """``analyze_mission`` writing its files and the ``analysis`` section into ``results_dir``,
     holding the folder for the whole command (``ResultsDir.writing``)."""
     out = Path(results_dir)
     with ResultsDir(out).writing(loaded.mission.name, loaded.path):
-        section, models = analyze_mission(loaded, out, plots=plots, progress=progress, pool=pool)
+        section, models = analyze_mission(loaded, out, plots=plots, progress=progress, pool=pool, csv=csv)
         ResultsDir(out).update("analysis", section)
     return section, models
 
 
 def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = None,
-                    progress: bool | None = None, pool=None) -> tuple[dict, list[LinearModel]]:
+                    progress: bool | None = None, pool=None, csv: bool = False) -> tuple[dict, list[LinearModel]]:
     """The study of a loaded mission: its ``analysis`` section and the linear models of ``analysis.modal``.
 
-    With ``out`` (an existing folder) the per-sample CSV tables are streamed there as the samples are
+    With ``out`` (an existing folder) the per-sample tables (Parquet, and CSV when the mission's
+    ``analysis.table`` lists it or ``csv`` is true; ``sms_cli.analysis.table``) are streamed there as the samples are
     evaluated (a study may not fit in memory), then the plots and the modal exports are written and
     listed in ``artifacts``; without it nothing is written and ``artifacts`` is empty. results.json
     is not touched (``run_analysis`` writes the section). The figures are drawn by ``pool``
@@ -91,18 +93,19 @@ def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = Non
 
     spec = loaded.mission.analysis or AnalysisSpec()
     draw = out is not None and (spec.plots if plots is None else plots)
+    formats = spec.table_formats(csv) if out is not None else ()
     if pool is not None:
-        return _study(loaded, spec, out, draw, progress, pool)
+        return _study(loaded, spec, out, draw, formats, progress, pool)
     with FigurePool(None if draw else 0) as own:  # its workers start now, while the samples are evaluated
-        return _study(loaded, spec, out, draw, progress, own)
+        return _study(loaded, spec, out, draw, formats, progress, own)
 
 
-def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, progress: bool | None, pool
-           ) -> tuple[dict, list[LinearModel]]:
+def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, formats: tuple[str, ...], progress: bool | None,
+           pool) -> tuple[dict, list[LinearModel]]:
     from sms_cli.analysis import plots as P
     from sms_cli.analysis.sampling import Progress
     from sms_cli.analysis.summary import Comparison, StudyStats
-    from sms_cli.analysis.table import csv_table
+    from sms_cli.analysis.table import sample_tables, table_names
     from sms_cli.analysis.workspace import build_variants, evaluate_block, make_sampler
     from sms_cli.model import compile_system
 
@@ -122,9 +125,10 @@ def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, progress: b
     t0 = time.perf_counter()
     tables = {}
     with contextlib.ExitStack() as stack:
-        if spec.table and out is not None:
+        if formats:
             for v in variants:
-                tables[v.name] = stack.enter_context(csv_table(out / f"analysis_{v.name}.csv", qcols + v.kernel.columns))
+                tables[v.name] = stack.enter_context(sample_tables(out, f"analysis_{v.name}", qcols + v.kernel.columns,
+                                                                   formats))
         done = 0
         for block in sampler.chunks():
             tc = time.perf_counter()
@@ -160,7 +164,7 @@ def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, progress: b
             "h_ratio_worst": idx["h_ratio"]["max"] if "h_ratio" in idx else None,
         }
         if v.name in tables:
-            section["artifacts"].append(f"analysis_{v.name}.csv")
+            section["artifacts"] += table_names(f"analysis_{v.name}", formats)
     for name, comp in comps.items():
         section["comparison"][name] = comp.summary()
 
