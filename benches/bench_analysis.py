@@ -6,14 +6,29 @@ Reports (best of --repeat runs, one process, one core):
   for one pass (6859 samples) and for the naive two-model study (2 x 6859);
 - study: every index of both variants (configurations, Pinocchio loop, batched numpy; the
   doubled-wheel variant reuses the nominal CRBA with the exact rank-update, see workspace.py);
-- samples per second and the ratio study / floor.
-Run: python benches/bench_analysis.py [--repeat 7]
+- samples per second and the ratio study / floor;
+- figures (issue #19): ms per figure by kind, drawn one after the other in this process (the
+  index maps of a variant share one figure, redrawn per column), and their sum;
+- the whole command ``sms analyze missions/demeter_3dof.yaml -o DIR`` (22 figures, Parquet tables;
+  a subprocess, best of --command-repeat) against the 3 s target, with the figure workers it used;
+- a 2^20-sample Sobol study of Demeter (generated in a temporary folder) with ``--no-plots``:
+  the whole command with Parquet tables and with ``--csv`` as well (best of --sobol-repeat),
+  its compute time (results.json) and the 10 s target.
+Run: python benches/bench_analysis.py [--repeat 7] [--command-repeat 3] [--sobol-n 1048576]
+     [--sobol-repeat 1] [--skip-command] [--skip-sobol]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +44,77 @@ STUDY = {"sampling": {"method": "grid", "n": 19, "symmetry": {"joint": "joint_1"
          "variants": [{"name": "doubled_wheels", "wheel_inertia_scale": 2}]}
 
 
+TARGET_COMMAND_S = 3.0
+TARGET_SOBOL_S = 10.0
+
+
+def sms_command() -> list[str]:
+    """The ``sms`` console script of this interpreter, else ``python -m sms_cli.cli``."""
+    script = Path(sys.executable).with_name("sms")
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "sms_cli.cli"]
+
+
+def timed_command(args: list[str], out: Path, repeat: int) -> tuple[float, dict]:
+    """Best wall time of ``sms <args> -o out`` (a fresh folder each run) and its results.json."""
+    times = []
+    for _ in range(repeat):
+        shutil.rmtree(out, ignore_errors=True)
+        t = time.perf_counter()
+        subprocess.run(sms_command() + args + ["-o", str(out), "--no-progress"], check=True, stdout=subprocess.DEVNULL)
+        times.append(time.perf_counter() - t)
+    return min(times), json.loads((out / "results.json").read_text())
+
+
+class SerialTimer:
+    """A ``FigurePool`` stand-in that draws every job here, in order, and times it per figure kind."""
+
+    def __init__(self):
+        self.cost: dict[str, list[float]] = defaultdict(list)
+
+    def run(self, jobs):
+        out = []
+        for fn, args in jobs:
+            kind = args[1].__name__ if fn.__name__ == "_figure" else fn.__name__
+            figures = 1 if fn.__name__ == "_figure" else len(args[1])
+            t = time.perf_counter()
+            out.append(fn(*args))
+            self.cost[kind].append((time.perf_counter() - t, figures))
+        return out
+
+
+def figure_costs(mission: Path) -> None:
+    from sms_cli.analysis.stage import analyze_mission
+    from sms_cli.report import figstyle
+
+    figstyle.warm_up()
+    loaded = load_mission(mission)
+    with tempfile.TemporaryDirectory() as tmp:
+        analyze_mission(loaded, Path(tmp), plots=True, pool=SerialTimer())  # first figures of the process
+        timer = SerialTimer()
+        analyze_mission(loaded, Path(tmp), plots=True, pool=timer)
+    label = {"clouds": "index maps (8 per variant, one figure)", "histograms_png": "histograms",
+             "slices_png": "slices", "compare_figures": "variant comparison maps"}
+    total_s, total_n = 0.0, 0
+    print("Figures of `sms analyze` on it, drawn in one process (ms per figure):")
+    for kind, runs in timer.cost.items():
+        t, n = sum(r[0] for r in runs), sum(r[1] for r in runs)
+        total_s, total_n = total_s + t, total_n + n
+        print(f"  {label.get(kind, kind):40s}: {t / n * 1e3:6.0f} ms x {n:2d} = {t:5.2f} s")
+    print(f"  {'all figures':40s}: {total_s / total_n * 1e3:6.0f} ms x {total_n:2d} = {total_s:5.2f} s")
+
+
+def sobol_mission(folder: Path, n: int) -> Path:
+    import yaml
+
+    d = yaml.safe_load((ROOT / "missions" / "demeter_3dof.yaml").read_text())
+    d["robot"]["urdf"] = str((ROOT / "missions" / d["robot"]["urdf"]).resolve())
+    d["analysis"]["sampling"] = {"method": "sobol", "n": n}
+    d.pop("requirements", None)
+    p = folder / "demeter_sobol.yaml"
+    p.write_text(yaml.safe_dump(d, sort_keys=False))
+    return p
+
+
 def best(fn, repeat: int) -> float:
     times = []
     for _ in range(repeat):
@@ -41,6 +127,11 @@ def best(fn, repeat: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--command-repeat", type=int, default=3, help="runs of the whole sms analyze command (best kept)")
+    ap.add_argument("--sobol-n", type=int, default=1 << 20, help="samples of the Sobol study")
+    ap.add_argument("--sobol-repeat", type=int, default=1, help="runs of each Sobol command (best kept)")
+    ap.add_argument("--skip-command", action="store_true", help="no whole-command timing")
+    ap.add_argument("--skip-sobol", action="store_true", help="no Sobol study")
     args = ap.parse_args()
     sm = compile_system(load_mission(ROOT / "missions" / "demeter_3dof.yaml"))
     spec = AnalysisSpec.model_validate(STUDY)
@@ -82,6 +173,33 @@ def main() -> None:
     print(f"  throughput                               : {2 * n / t_study:,.0f} variant-samples/s")
     print(f"  K_m worst case: nominal {nom['K_m'].max():.3f}, doubled wheels {dbl['K_m'].max():.3f}"
           f" (Kraiem 2022: 0.65 -> 0.4); lower at {np.mean(dbl['K_m'] < nom['K_m']) * 100:.1f}% of samples")
+    print()
+    mission = ROOT / "missions" / "demeter_3dof.yaml"
+    figure_costs(mission)
+    from sms_cli.report.figpool import default_workers
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        if not args.skip_command:
+            t, res = timed_command(["analyze", str(mission)], tmp / "demeter", args.command_repeat)
+            a = res["analysis"]
+            print(f"Whole command `sms analyze missions/demeter_3dof.yaml -o DIR` ({len(a['artifacts'])} files, "
+                  f"{sum(f.endswith('.png') for f in a['artifacts'])} figures, {default_workers()} figure worker(s) "
+                  f"+ the command, {os.cpu_count()} cores):")
+            print(f"  best of {args.command_repeat}: {t:5.2f} s  = {t / TARGET_COMMAND_S:.2f} x the {TARGET_COMMAND_S:g} s "
+                  f"target (study {a['timing']['total_s']:.2f} s of it)")
+        if not args.skip_sobol:
+            m = sobol_mission(tmp, args.sobol_n)
+            print(f"Sobol study, {args.sobol_n:,} samples x 2 variants, --no-plots (best of {args.sobol_repeat}):")
+            base = None
+            for label, extra in (("Parquet", []), ("Parquet + CSV (--csv)", ["--csv"])):
+                t, res = timed_command(["analyze", str(m), "--no-plots"] + extra, tmp / "sobol", args.sobol_repeat)
+                a = res["analysis"]
+                size = sum((tmp / "sobol" / f).stat().st_size for f in a["artifacts"]) / 1e6
+                base = base or t
+                print(f"  {label:22s}: {t:6.2f} s  = {t / TARGET_SOBOL_S:.2f} x the {TARGET_SOBOL_S:g} s target, "
+                      f"{t / base:.2f} x Parquet; compute {a['timing']['compute_s']:.2f} s, tables {size:,.0f} MB")
+                shutil.rmtree(tmp / "sobol", ignore_errors=True)
 
 
 if __name__ == "__main__":
