@@ -60,6 +60,17 @@ def test_maps_redrawn_per_column_are_the_fresh_figures_byte_for_byte(tmp_path):
     assert [p for p, _ in batch] == [p for p, *_ in items]
     for (path, png), (_, values, column, title) in zip(batch, items):
         assert png == plain_cloud(xyz, values, column, title), path.name
+    # and each drawing shows its column: values per cell, colour bar label, title, the undefined note
+    maps = P._Maps([xyz], len(xyz))
+    for _, values, column, title in items:
+        maps.draw([values], column, title)
+        for (flat, shape), (image, grey, _) in zip(maps.cells[0], maps.images[0]):
+            best, undef = P._best_map(flat, shape, values, column in P.LOWER_IS_BETTER)
+            np.testing.assert_array_equal(np.asarray(image.get_array().filled(np.nan)), best)
+            assert (grey is not None) == bool(undef.any())
+        assert maps.colorbar.ax.get_ylabel() == f"{P.SHORT[column]}\n({P.better(column)} is better)"
+        assert maps.title.get_text() == title and maps.note.get_visible() == bool(np.isnan(values).any())
+    maps.close()
     meta = [S.png_info(png)["text"] for _, png in batch]
     assert all(set(m) == set(S.META_KEYS) for m in meta)
     # the redrawn parts are measured: the "grey: undefined" note (8.5 pt = 11.8 px) only where a column has NaN
@@ -111,10 +122,10 @@ def test_pool_interrupted_stops_at_once_and_leaves_no_worker():
     procs = list(pool._procs)
     t = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
-        with pool:
-            pool.run([(time.sleep, (30,)), (time.sleep, (0.5,)), (_interrupt, ())])
+        pool.run([(time.sleep, (30,)), (time.sleep, (0.5,)), (_interrupt, ())])
     assert time.perf_counter() - t < 10
-    assert all(p.poll() is not None for p in procs)
+    assert all(p.poll() is not None for p in procs)  # stopped by run itself, before any close
+    pool.close()
 
 
 def small_study(tmp_path: Path) -> Path:

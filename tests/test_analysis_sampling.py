@@ -115,3 +115,34 @@ def test_schema_accepts_units_and_rejects_typos():
         AnalysisSpec.model_validate({"sampling": {"ranges": {"j": [1, 0]}}})
     with pytest.raises(ValidationError):
         AnalysisSpec.model_validate({"variants": [{"name": "nominal"}]})
+
+
+def test_stats_streamed_in_blocks_equal_one_block_and_a_brute_force_best():
+    """Block by block (the slices accumulated with ufunc.at on flat indices, the best kept per block)
+    gives what one block gives, and the best configurations are the sorted top of all samples."""
+    rng = np.random.default_rng(3)
+    n = 600
+    samples = rng.random((n, 2))
+    cols = {"mu_gjm": np.round(np.sin(4 * samples[:, 0]) * samples[:, 1], 2),  # many ties
+            "K_m": np.where(rng.random(n) < 0.1, np.nan, samples[:, 0] * samples[:, 1]), "ee_x": samples[:, 0]}
+
+    def stats(block: int) -> StudyStats:
+        st = StudyStats(list(cols), ["a", "b"], [(0.0, 1.0), (0.0, 1.0)], None, best=5)
+        for s in range(0, n, block):
+            st.add(samples[s:s + block], {c: v[s:s + block] for c, v in cols.items()}, s)
+        return st
+
+    one, many = stats(n), stats(16)
+    s1, s2 = one.summary(), many.summary()
+    assert repr(s1["best"]) == repr(s2["best"])
+    for c in cols:  # sums are added per block: the means agree to rounding, the rest exactly
+        m1, m2 = s1["indices"][c].pop("mean"), s2["indices"][c].pop("mean")
+        assert m1 == pytest.approx(m2, rel=1e-12) and s1["indices"][c] == s2["indices"][c]
+    for a, b in zip(one.slices(), many.slices()):
+        np.testing.assert_array_equal(a["min"], b["min"])
+        np.testing.assert_array_equal(a["max"], b["max"])
+        np.testing.assert_allclose(a["mean"], b["mean"], rtol=1e-12, equal_nan=True)
+    for c, higher in (("mu_gjm", True), ("K_m", False)):
+        v = cols[c]
+        order = sorted((i for i in range(n) if np.isfinite(v[i])), key=lambda i: -v[i] if higher else v[i])  # stable
+        assert [b["sample"] for b in many.summary()["best"][c]] == order[:5], c

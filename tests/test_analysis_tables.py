@@ -53,7 +53,7 @@ def in_memory(mission: Path) -> tuple[list[str], np.ndarray, list[dict[str, np.n
 
 @pytest.fixture
 def small_groups(monkeypatch):
-    monkeypatch.setattr(T, "ROW_GROUP_ROWS", 40)  # blocks of 32: row groups of 64 rows, the last of 61
+    monkeypatch.setattr(T, "ROW_GROUP_ROWS", 70)  # blocks of 32: a row group of 96 rows, the last (pending) of 29
 
 
 def test_parquet_holds_one_row_per_sample_with_the_computed_values(tmp_path, small_groups):
@@ -66,7 +66,7 @@ def test_parquet_holds_one_row_per_sample_with_the_computed_values(tmp_path, sma
     for variant, cols in zip(("nominal", "doubled_wheels"), res):
         f = pq.ParquetFile(out / f"analysis_{variant}.parquet")
         assert f.metadata.num_rows == sec["samples"] == len(samples) == 125
-        assert [f.metadata.row_group(i).num_rows for i in range(f.metadata.num_row_groups)] == [64, 61]
+        assert [f.metadata.row_group(i).num_rows for i in range(f.metadata.num_row_groups)] == [96, 29]
         t = f.read()
         assert t.column_names == ["sample"] + [f"q_{n}" for n in names] + list(cols)
         assert t.schema.field("sample").type == pa.int64()
@@ -130,7 +130,8 @@ def test_an_interrupted_table_leaves_no_file_and_keeps_the_previous_one(tmp_path
         with pytest.raises(Boom):
             with T.sample_tables(tmp_path, "analysis_nominal", ["q_a", "x"], formats) as t:
                 if when == "after a block":
-                    t.write({k: v[::-1] for k, v in block.items()})  # 50 rows: one row group written
+                    t.write({k: v[::-1] for k, v in block.items()})  # 50 rows: pending (< 70)
+                    t.write(block)  # 100 rows: a row group written
                 raise Boom
         assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before, when  # no .part, old tables
     fresh = tmp_path / "fresh"
