@@ -104,7 +104,7 @@ def compose(R1, p1, R2, p2, R_out, p_out):
             R_out[a, b] = acc
 
 
-@njit(**_HOT)
+@njit(**_JIT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
     the joint's fixed placement composed with its motion (rotation Rj, translation tj)."""

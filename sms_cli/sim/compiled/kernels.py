@@ -31,7 +31,7 @@ def kernel_groups(sm: SystemModel, spec: SimulationSpec, att_spec, record: bool)
     groups: list[list[KernelCall]] = []
     compiled_loop = spec.engine != "python" and loop_reason(sm, spec, att_spec) is None
     if compiled_loop:
-        groups.append(loop_calls(sm))
+        groups += [loop_calls(sm), loop_callee_calls(sm)]
     elif spec.engine != "python" and plant_reason(sm) is None:
         from sms_cli.dynamics.joint_stops import stop_table
 
@@ -76,4 +76,35 @@ def loop_calls(sm: SystemModel) -> list[KernelCall]:
             False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, 0.0, 1.0, 1, 0, 0, 1e9, q.copy(), v.copy(), np.zeros(4),
             np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_), np.empty((1, 3)), np.empty((1, 6)),
             e1, e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2), cost=6.0),
+    ]
+
+
+def loop_callee_calls(sm: SystemModel) -> list[KernelCall]:
+    """The loop's callees that do not need ABA (law, wheel model, momenta, scratch arrays), with the
+    argument types of their calls in ``run_ticks``: a group of their own, so that another lane compiles
+    them while this one compiles ABA and the plant step, and ``run_ticks`` finds them cached."""
+    from sms_cli.sim.compiled.dynamics import workspace
+    from sms_cli.sim.compiled.tree import flatten
+
+    T = flatten(sm.model)
+    n, nw = T.parent.shape[0], len(sm.idx.wheels)
+    q, v = sm.q0.astype(float).copy(), np.zeros(sm.nv)
+    w3, w = np.zeros(3), np.zeros(nw)
+    ones = np.ones(nw)
+    I, G, Js, K, P, Ki, lim, law_type, L = NO_LAW
+    ctl, dyn = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics"
+    R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
+    return [
+        KernelCall(f"{dyn}:workspace", (n, sm.nq, sm.nv, 0), cost=1.3),
+        KernelCall(f"{ctl}:error_quaternion", (q[3:7], q[3:7].copy(), np.empty(4)), cost=0.2),
+        KernelCall(f"{ctl}:error_angle", (q[3:7], q[3:7].copy()), cost=0.2),
+        KernelCall(f"{ctl}:mrp_feedback", (np.array([0.0, 0.0, 0.0, 1.0]), w3, w3, w3.copy(), w, I, G, Js, K, P, Ki, lim,
+                                           law_type, L, np.zeros(4), 0.0, np.empty(3)), cost=0.9),
+        KernelCall(f"{ctl}:clip_attitude_torque", (np.zeros(3), np.inf), cost=0.1),
+        KernelCall(f"{ctl}:allocate_and_clip", (np.zeros(3), w, np.zeros((nw, 3)), np.zeros((nw, nw)), w, 0.0, 0.0, ones,
+                                                np.empty(nw)), cost=0.3),
+        KernelCall(f"{ctl}:may_reach_limit", (w, w, ones, ones, 0.1), cost=0.1),
+        KernelCall(f"{ctl}:limited_torque", (w, w, ones, ones, 0.1, 0.0, 0.0, np.empty(nw)), cost=0.2),
+        KernelCall(f"{dyn}:momenta_energy", (T.parent, T.kind, T.axis, T.inertia, T.mass, T.com, T.armature, T.idx_v, R_rel,
+                                             p_rel, v, np.empty(10), workspace(n, sm.nq, sm.nv, 0)), cost=1.7),
     ]

@@ -55,7 +55,11 @@ def cached(call: KernelCall) -> bool:
 
 
 def lanes_available() -> int:
-    """Cores this process may use (the CPU affinity mask), at least 1."""
+    """Cores this process may use (the CPU affinity mask), at least 1; ``SMS_COMPILE_LANES`` sets
+    the number of lanes instead (1: compile in this process only)."""
+    env = os.environ.get("SMS_COMPILE_LANES", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
