@@ -13,19 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sms_cli.sim.compiled.warmup import KernelCall, split, warm
+from sms_cli.sim.compiled.warmup import KernelCall, warm
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def test_split_is_longest_first_and_keeps_group_order():
-    a, b, c, d = (KernelCall(f"m:{n}", (), cost=w) for n, w in (("a", 1.0), ("b", 5.0), ("c", 2.0), ("d", 3.0)))
-    plan = split([[a, c], [b], [d]], 2)  # costs 3, 5, 3: b alone, then the two 3s share the other lane... in order
-    assert plan[0] == [b] or plan[1] == [b]
-    other = plan[1] if plan[0] == [b] else plan[0]
-    assert sorted(k.kernel for k in other) == ["m:a", "m:c", "m:d"]
-    assert other.index(a) < other.index(c)  # a group stays in its order (callees before callers)
-    assert split([[a], [b]], 1) == [[b, a]]
 
 
 TOY = textwrap.dedent('''
@@ -44,8 +34,8 @@ TOY = textwrap.dedent('''
 
 
 def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path, monkeypatch):
-    """Two groups on two lanes: the second compiles in a worker process; this process then loads it
-    from the cache (a hit, no compilation of its own)."""
+    """Two groups on two lanes: the costlier compiles in a worker process, the other here; this
+    process then loads the worker's from the cache (a hit, no compilation of its own)."""
     import numba
 
     pkg = tmp_path / "src"
@@ -59,16 +49,15 @@ def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path,
     import sms_toy_kernels as toy
 
     x = np.arange(3.0)
-    first = KernelCall("sms_toy_kernels:double_into", (x, np.empty(3)), cost=2.0)
-    second = KernelCall("sms_toy_kernels:add_into", (x, x, np.empty(3)), cost=1.0)
+    costly = KernelCall("sms_toy_kernels:double_into", (x, np.empty(3)), cost=2.0)
+    cheap = KernelCall("sms_toy_kernels:add_into", (x, x, np.empty(3)), cost=1.0)
     log = io.StringIO()
-    report = warm([[first], [second]], lanes=2, stream=log)
+    report = warm([[cheap], [costly]], lanes=2, stream=log)
     assert report == {"compiled": 2, "lanes": 2, "seconds": report["seconds"]}
-    assert "compiling 2 simulation kernels on 2 cores" in log.getvalue()
-    assert "add_into" in log.getvalue() and "double_into" in log.getvalue()
-    assert toy.add_into.stats.cache_hits and not toy.add_into.stats.cache_misses  # the worker's machine code
-    assert toy.double_into.stats.cache_misses  # compiled here, in lane 0
-    again = warm([[first], [second]], lanes=2, stream=io.StringIO())
+    assert "compiling 2 simulation kernels on 2 cores" in log.getvalue() and "kernels ready in" in log.getvalue()
+    assert toy.double_into.stats.cache_hits and not toy.double_into.stats.cache_misses  # the worker's machine code
+    assert toy.add_into.stats.cache_misses  # compiled here
+    again = warm([[cheap], [costly]], lanes=2, stream=io.StringIO())
     assert again["compiled"] == 0 and again["lanes"] == 0  # all cached: nothing said, nothing compiled
 
 
