@@ -46,6 +46,16 @@ def test_duplicate_key_rejected(tmp_path):
     assert "first defined at line 1" in e.value.render()
 
 
+@pytest.mark.parametrize("line", ['robot_x: {urdf: "arm\\0.urdf"}', 'notes: "ar\\0m"', '"no\\0tes": x'])
+def test_a_nul_escape_is_refused_at_its_line_with_exit_2(tmp_path, line):
+    """A "\\0" escape (a fuzzer's find: the path of a URDF with one crashed path resolution with exit 4)."""
+    p = write(tmp_path, GOOD + line + "\n")
+    r = run_cli("compile", p)
+    n = len(GOOD.splitlines()) + 1
+    assert r.exit_code == 2, r.output
+    assert f"m.yaml:{n}:" in r.output and "NUL character" in r.output and "Error" not in r.output
+
+
 def test_yaml_syntax_error_has_position(tmp_path):
     p = write(tmp_path, "name: x\nrobot: [unclosed\n")
     with pytest.raises(InputError) as e:
