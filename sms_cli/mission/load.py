@@ -16,7 +16,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from sms_cli.errors import InputError, Problem
+from sms_cli.errors import InputError, Location, Problem
 from sms_cli.inputs import absolute
 from sms_cli.mission.schema import Mission
 from sms_cli.mission.units import SpecError, clip
@@ -35,6 +35,10 @@ class LoadedMission:
     def resolve(self, relative: str, key: tuple[Any, ...] = ()) -> Path:
         """A path written in the mission, relative to the folder of the file that wrote it
         (the mission itself, or the file it ``extends``); ``key`` is where it was written."""
+        if "\0" in str(relative):  # no file system takes one; os calls raise ValueError on it
+            raise InputError(problems=[Problem(f"the path {relative!r} holds a NUL character (\\0)",
+                                               self.source.locate(key) if key else Location(self.path),
+                                               ".".join(map(str, key)), "remove the \\0 escape from the quoted path")])
         p = Path(relative)
         base = self.source.file_of(key) if key else self.path
         return p if p.is_absolute() else absolute(Path(base).parent / p)  # a symlink loop is left for the read to report
@@ -184,6 +188,9 @@ def _extend(path: Path, data: Any, smap: SourceMap, chain: tuple[Path, ...] = ()
     where = smap.locate(("extends",))
     if not isinstance(parent_ref, str):
         raise InputError(problems=[Problem("extends: expected the path of another mission file", where, "extends")])
+    if "\0" in parent_ref:
+        raise InputError(problems=[Problem(f"the path {parent_ref!r} holds a NUL character (\\0)", where, "extends",
+                                           "remove the \\0 escape from the quoted path")])
     parent_path = absolute(path.parent / parent_ref)
     if parent_path in chain + (absolute(path),):
         raise InputError(problems=[Problem(f"extends forms a cycle through {parent_path.name}", where, "extends")])

@@ -97,14 +97,8 @@ class SourceMap:
             path = path[:-1]
 
 
-def _scalar(loader: yaml.SafeLoader, node: ScalarNode, smap: "SourceMap | None" = None) -> Any:
-    value = loader.construct_object(node, deep=True)
-    if isinstance(value, str) and "\0" in value:  # a "\0" escape: no name, path or text of a mission holds one
-        raise InputError(problems=[Problem(
-            "a NUL character (\\0) in a value: no name, path or text may hold one",
-            Location(smap.file if smap is not None else "<string>", node.start_mark.line + 1, node.start_mark.column + 1),
-            hint="remove the \\0 escape from the quoted string")])
-    return value
+def _scalar(loader: yaml.SafeLoader, node: ScalarNode) -> Any:
+    return loader.construct_object(node, deep=True)
 
 
 def _at(smap: SourceMap, node: Node) -> Location:
@@ -133,7 +127,7 @@ def _build(loader: yaml.SafeLoader, node: Node, path: KeyPath, smap: SourceMap, 
         loader.flatten_mapping(node)
         out: dict[Any, Any] = {}
         for key_node, value_node in node.value:
-            key = _scalar(loader, key_node, smap) if isinstance(key_node, ScalarNode) else None
+            key = _scalar(loader, key_node) if isinstance(key_node, ScalarNode) else None
             if key is None and not isinstance(key_node, ScalarNode):
                 raise InputError(problems=[Problem(
                     "complex mapping keys are not supported",
@@ -149,7 +143,7 @@ def _build(loader: yaml.SafeLoader, node: Node, path: KeyPath, smap: SourceMap, 
         return out
     if isinstance(node, SequenceNode):
         return [_build(loader, item, path + (i,), smap, budget) for i, item in enumerate(node.value)]
-    return _scalar(loader, node, smap)
+    return _scalar(loader, node)
 
 
 def load_yaml(path: Path | str, where: Location | None = None, what: str = "mission file") -> tuple[Any, SourceMap]:
