@@ -104,7 +104,7 @@ def compose(R1, p1, R2, p2, R_out, p_out):
             R_out[a, b] = acc
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
     the joint's fixed placement composed with its motion (rotation Rj, translation tj)."""
@@ -129,7 +129,7 @@ def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
         compose(place_R[i], place_p[i], Rj, tj, R_out[i], p_out[i])
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def world_placements(parent, R_rel, p_rel, oR, op):
     """World placement of each joint frame from the parent-relative ones (parents come first)."""
     for i in range(parent.shape[0]):
@@ -292,7 +292,7 @@ def workspace(n, nq, nv, ne=0):
             np.empty((nv, nv)), np.empty((nv, nv)), np.empty(nv))
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
     """Spatial velocity of each body in its joint frame."""
     n = parent.shape[0]
@@ -334,7 +334,7 @@ def _solve_spd6(A, b, L, out):
         out[i] = x / L[i, i]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
@@ -423,7 +423,10 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             acc6[i, a] += S[a] * qdd
 
 
-@njit(**_JIT)
+aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
+
+
+@njit(**_HOT)
 def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, out, ws):
     """out = [p (3), k about the CoM (3), k about the world origin (3), kinetic energy (J)], world frame."""
     vel, oR, op, f, fw = ws[0], ws[16], ws[17], ws[13], ws[14]
@@ -677,7 +680,7 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
         for a in range(nv):
             unit[a] = 0.0
         unit[cols[j]] = 1.0
-        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
         for a in range(nv):
             G[a, j] = col[a]
         for k in range(ne):

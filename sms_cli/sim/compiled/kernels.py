@@ -80,7 +80,7 @@ def loop_calls(sm: SystemModel) -> list[KernelCall]:
 
 
 def loop_callee_calls(sm: SystemModel) -> list[KernelCall]:
-    """The loop's callees that do not need ABA (law, wheel model, momenta, scratch arrays), with the
+    """The loop's callees that do not need ABA (law, wheel model, scratch arrays), with the
     argument types of their calls in ``run_ticks``: a group of their own, so that another lane compiles
     them while this one compiles ABA and the plant step, and ``run_ticks`` finds them cached."""
     from sms_cli.sim.compiled.dynamics import workspace
@@ -93,7 +93,6 @@ def loop_callee_calls(sm: SystemModel) -> list[KernelCall]:
     ones = np.ones(nw)
     I, G, Js, K, P, Ki, lim, law_type, L = NO_LAW
     ctl, dyn = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics"
-    R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
     return [
         KernelCall(f"{dyn}:workspace", (n, sm.nq, sm.nv, 0), cost=1.3),
         KernelCall(f"{ctl}:error_quaternion", (q[3:7], q[3:7].copy(), np.empty(4)), cost=0.2),
@@ -105,6 +104,4 @@ def loop_callee_calls(sm: SystemModel) -> list[KernelCall]:
                                                 np.empty(nw)), cost=0.3),
         KernelCall(f"{ctl}:may_reach_limit", (w, w, ones, ones, 0.1), cost=0.1),
         KernelCall(f"{ctl}:limited_torque", (w, w, ones, ones, 0.1, 0.0, 0.0, np.empty(nw)), cost=0.2),
-        KernelCall(f"{dyn}:momenta_energy", (T.parent, T.kind, T.axis, T.inertia, T.mass, T.com, T.armature, T.idx_v, R_rel,
-                                             p_rel, v, np.empty(10), workspace(n, sm.nq, sm.nv, 0)), cost=1.7),
     ]

@@ -18,7 +18,7 @@ from numba import njit
 from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
                                           limited_torque, may_reach_limit, mrp_feedback)
-from sms_cli.sim.compiled.dynamics import (aba, frame_poses, joint_transforms, momenta_energy, relative_poses,
+from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transforms, momenta_energy, relative_poses,
                                            rkmk4_step, workspace, world_placements)
 
 RUNNING, SETTLED, NON_FINITE, RATE_LIMIT = 0, 1, 2, 3
@@ -38,7 +38,7 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_
     for k in range(wheel_v.shape[0]):
         tau[:] = 0.0
         tau[wheel_v[k]] = 1.0
-        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
                  col, ws)
         out[k] = 1.0 / col[wheel_v[k]]
 
