@@ -66,8 +66,6 @@ SIGNATURES = textwrap.dedent('''
     from pathlib import Path
     from sms_cli.mission.load import load_mission
     from sms_cli.model import compile_system
-    from sms_cli.sim.compiled.kernels import kernel_groups
-    from sms_cli.sim.compiled.warmup import warm
     from sms_cli.sim.engine import Simulation
     from sms_cli.sim.recorder import McapRecorder
     from sms_cli.sim.stage import planned_simulation
@@ -78,15 +76,16 @@ SIGNATURES = textwrap.dedent('''
     sm = compile_system(loaded)
     spec, _ = planned_simulation(sm, loaded)
     spec = spec.model_copy(update={"phases": spec.phases[:1]})
-    warm(kernel_groups(sm, spec, spec.attitude, record=True))
-    kernels = [getattr(m, n) for m in (D, L, B) for n in dir(m) if hasattr(getattr(m, n), "signatures")]
-    before = {k.py_func.__name__: len(k.signatures) for k in kernels}
     rec = McapRecorder(Path(sys.argv[2]), mission_text=loaded.text, mission_name=loaded.mission.name,
                        model_summary=model_summary(sm), urdf_text=sm.urdf_text, versions={}, record_rate_hz=spec.record_rate)
     links = list(sm.link_parents)
     rec.add_transform_tree(links, [sm.link_parents[n] for n in links])
     with rec:
-        res = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent).run()
+        sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
+        sim.warm_up()
+        kernels = [getattr(m, n) for m in (D, L, B) for n in dir(m) if hasattr(getattr(m, n), "signatures")]
+        before = {k.py_func.__name__: len(k.signatures) for k in kernels}
+        res = sim.run()
         rec.finish(res.status)
     after = {k.py_func.__name__: len(k.signatures) for k in kernels}
     print(json.dumps({"engine": res.timing["engine"], "new": {n: after[n] - before[n] for n in after if after[n] != before[n]}}))

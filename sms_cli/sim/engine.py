@@ -130,6 +130,7 @@ class Simulation:
         # the compiled loop runs the mission when it fits it; otherwise the Python loop below, with
         # the compiled plant step when the model allows it and recording in blocks
         self.compiled_loop = spec.engine != "python" and self.compiled_unsupported() is None
+        self._compiled = None  # the CompiledSimulation, made by warm_up
         self.plant = None
         if not self.compiled_loop and spec.engine != "python":
             from sms_cli.sim.compiled.plant import CompiledPlant, unsupported_reason
@@ -334,22 +335,30 @@ class Simulation:
     def run(self) -> SimResult:
         """Run the mission with the engine ``simulation.engine`` asks for (see SimulationSpec)."""
         self.check_engine()
-        self._warm_up()  # the first run after an install compiles the kernels (cached afterwards)
+        self.warm_up()  # the first run after an install compiles the kernels (cached afterwards)
         if self.compiled_loop:
-            from sms_cli.sim.compiled.runner import CompiledSimulation
-
-            return CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law).run()
+            return self._compiled.run()
         return self.run_python()
 
-    def _warm_up(self) -> None:
-        """Load (on a cold cache: compile, in parallel) the kernels this loop calls: the compiled plant
-        (and its joint-stop kernels) and the recording's (``sms_cli.sim.compiled.kernels``)."""
+    def warm_up(self) -> None:
+        """Load (on a cold cache: compile, in parallel) the kernels the chosen loop calls, from the
+        objects that call them (``sms_cli.sim.compiled.kernels``): the compiled loop, or the compiled
+        plant (and its joint-stop kernels), and the recording's."""
         from sms_cli.sim.compiled.kernels import kernel_groups
         from sms_cli.sim.compiled.warmup import warm
 
-        groups = kernel_groups(self.sm, self.spec, self.att_spec, record=self.rec is not None)
-        if groups:
-            warm(groups)
+        if self.compiled_loop:
+            if self._compiled is None:
+                from sms_cli.sim.compiled.runner import CompiledSimulation
+
+                self._compiled = CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law)
+            kin = self._compiled.kinematics
+            groups = kernel_groups(self.sm, loop_tree=kin.tree, recording=kin if self.rec is not None else None)
+        else:
+            buffer = getattr(self, "_buffer", None)
+            groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
+                                   recording=(buffer.kinematics or False) if buffer is not None else None)
+        warm(groups)
 
     # ------------------------------------------------------------------ main loop
     def run_python(self) -> SimResult:

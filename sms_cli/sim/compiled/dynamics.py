@@ -423,9 +423,6 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             acc6[i, a] += S[a] * qdd
 
 
-aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
-
-
 @njit(**_HOT)
 def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, out, ws):
     """out = [p (3), k about the CoM (3), k about the world origin (3), kinetic energy (J)], world frame."""
@@ -658,6 +655,7 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
 
 
+aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
 
 
 # ----------------------------------------------------------------------------- joint stops

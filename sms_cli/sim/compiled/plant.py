@@ -100,7 +100,6 @@ class CompiledPlant:
         inverse_mass_columns(*self._tree, self._modal[0], np.ascontiguousarray(q, dtype=float), cols, G, self._ws)
         return G
 
-
     def warm_calls(self, stops: bool = False) -> list:
         """This plant's kernel calls on throw-away states, for ``sms_cli.sim.compiled.warmup.warm``:
         the step (its locked-joint form has the same types) and, with joint stops, the free

@@ -9,7 +9,6 @@ progress bar moves and Ctrl-C is honoured between slices (numba code cannot be i
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
