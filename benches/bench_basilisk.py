@@ -54,7 +54,7 @@ def _setup(record_path: Path | None, engine: str = "auto"):
     from sms_cli.mission.load import load_mission
     from sms_cli.model import compile_system
     from sms_cli.model.summary import model_summary
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.recording.recorder import McapRecorder
     from sms_cli.sim.stage import versions
 
     loaded = load_mission(MISSION)
@@ -262,14 +262,13 @@ def _micro(record_path: Path, n: int = 3000) -> list[tuple[str, float]]:
 
 def _read_mcap(path: Path) -> dict:
     """σ_BN, ω (body), wheel speeds and wheel torques from sms's recording, by step index."""
-    from mcap.reader import make_reader
+    from sms_cli.recording.read import messages
 
     want = {"/attitude": [], "/base/rate": [], "/wheels/speed": [], "/wheels/torque": []}
     times = {k: [] for k in want}
-    with open(path, "rb") as f:
-        for _, channel, msg in make_reader(f).iter_messages(topics=list(want)):
-            want[channel.topic].append(json.loads(msg.data))
-            times[channel.topic].append(msg.log_time)
+    for topic, log_time, data in messages(path, list(want)):
+        want[topic].append(data)
+        times[topic].append(log_time)
     t = np.array(times["/attitude"], dtype=np.int64)
     q = np.array([[m["qx"], m["qy"], m["qz"], m["qw"]] for m in want["/attitude"]])
     q[q[:, 3] < 0] *= -1.0

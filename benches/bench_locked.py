@@ -52,7 +52,7 @@ def _per_sample(repeat: int) -> None:
 @contextmanager
 def _without_topic():
     """μ not computed and /momentum/locked not written (the recording before this topic)."""
-    import sms_cli.sim.record_buffer as rb
+    import sms_cli.recording.buffer as rb
 
     orig = rb.numeric_topics
 
@@ -78,7 +78,7 @@ def _recording(repeat: int) -> None:
     from sms_cli.model.summary import model_summary
     from sms_cli.sim.compiled.runner import CompiledSimulation
     from sms_cli.sim.engine import Simulation
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.recording.recorder import McapRecorder
 
     loaded = load_mission(ROOT / "missions" / "basilisk_rw_reference.yaml")
     spent = {"t": 0.0}

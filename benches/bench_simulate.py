@@ -30,7 +30,7 @@ from sms_cli.sim.compiled.runner import CompiledSimulation  # noqa: E402
 from sms_cli.mission.load import load_mission  # noqa: E402
 from sms_cli.model import compile_system  # noqa: E402
 from sms_cli.model.summary import model_summary  # noqa: E402
-from sms_cli.sim.recorder import McapRecorder  # noqa: E402
+from sms_cli.recording.recorder import McapRecorder  # noqa: E402
 from sms_cli.sim.stage import planned_simulation, versions  # noqa: E402
 from sms_cli.synthesis.stage import run_synthesis  # noqa: E402
 

@@ -600,7 +600,7 @@ def inspect_cmd(
     """
 
     def body() -> int:
-        from sms_cli.sim.inspect import format_inspection, format_repair, inspect_recording, repair_recording
+        from sms_cli.recording.inspect import format_inspection, format_repair, inspect_recording, repair_recording
 
         if repair:
             err(format_repair(repair_recording(recording)))

@@ -175,7 +175,7 @@ def test_sigkill_leaves_a_readable_recording_and_the_next_run_says_so(tmp_path):
     proc.wait(timeout=60)
     rec = out / "simulation.mcap"
     n, last, meta = read_mcap(rec)  # the end marker: the mcap reader opens it as it is
-    assert n > 20_000 and "run" not in meta
+    assert n > 10_000 and "run" not in meta  # the ≥ 1 MB of complete chunks waited for
     assert json.loads((out / "results.json").read_text())["run"]["state"] == "running"  # on disk
     assert ResultsDir(out).read()["run"]["state"] == "killed"  # what sms check / report are given
 
@@ -273,7 +273,7 @@ class FullDisk(io.FileIO):
 
 
 def test_disk_full_during_simulate(tmp_path, monkeypatch):
-    import sms_cli.sim.recorder as recorder
+    import sms_cli.recording.recorder as recorder
 
     monkeypatch.setattr(recorder, "open", lambda path, mode, buffering=-1: FullDisk(path, mode), raising=False)
     out = tmp_path / "out"
@@ -298,7 +298,7 @@ def test_disk_full_during_simulate(tmp_path, monkeypatch):
 def small_recording(path: Path, samples: int = 3000) -> None:
     import numpy as np
 
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.recording.recorder import McapRecorder
 
     rec = McapRecorder(path, mission_text="m", mission_name="m", model_summary={}, urdf_text="<robot/>", versions={},
                        chunk_size=16 * 1024)

@@ -12,16 +12,15 @@ Each engine on a rigid arm (Astrobee) and on a model with flexible modes (Pulsar
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from mcap.reader import make_reader
 
 from conftest import assert_tree_close
 
+from sms_cli.recording.read import messages as read_messages
 from sms_cli.dynamics.integrator import State
 from sms_cli.dynamics.joint_stops import JointStops, PinocchioPlant, complementarity, stop_table
 from sms_cli.mission.load import load_mission
@@ -257,9 +256,8 @@ def _run(tmp_path, path: Path, name: str, **simulation):
 
 def _messages(mcap: Path) -> dict[str, list]:
     out: dict[str, list] = {}
-    with open(mcap, "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
-            out.setdefault(channel.topic, []).append((message.log_time * 1e-9, json.loads(message.data)))
+    for topic, log_time, data in read_messages(mcap):
+        out.setdefault(topic, []).append((log_time * 1e-9, data))
     return out
 
 

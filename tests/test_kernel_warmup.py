@@ -67,10 +67,10 @@ SIGNATURES = textwrap.dedent('''
     from sms_cli.mission.load import load_mission
     from sms_cli.model import compile_system
     from sms_cli.sim.engine import Simulation
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.recording.recorder import McapRecorder
     from sms_cli.sim.stage import planned_simulation
     from sms_cli.model.summary import model_summary
-    import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.sim.mcap_block as B
+    import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.recording.encoding as B
 
     loaded = load_mission(sys.argv[1])
     sm = compile_system(loaded)

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from mcap.reader import make_reader
 
 from conftest import MISSIONS, ROOT, compile_path, run_cli
 
+from sms_cli.recording.read import messages as read_messages
 from sms_cli.dynamics.integrator import State, rkmk4_step
 from sms_cli.dynamics.locked import locked_shape, locked_velocities, locked_velocity, shape_invariant
 
@@ -216,9 +216,8 @@ def test_world_angular_momentum_R_I_mu_is_conserved_torque_free(pyramid):
 
 def _messages(path: Path) -> dict[str, list]:
     out: dict[str, list] = {}
-    with open(path, "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
-            out.setdefault(channel.topic, []).append(json.loads(message.data))
+    for topic, _, data in read_messages(path):
+        out.setdefault(topic, []).append(data)
     return out
 
 

@@ -1,9 +1,11 @@
 """MCAP recorder and ``sms inspect``: read back with the official ``mcap`` reader.
 
 Oracles: the ``mcap`` package's reader (an independent implementation of the format, with CRC
-checks), Pinocchio's SE3 algebra for the transform tree, exact integer arithmetic for the
-decimation times, the JSON schemas stored in the file (validated with ``jsonschema``), sha256 of
-two independent runs, and a real SIGINT delivered to a recording subprocess.
+checks) with the published protobuf decoder (``mcap-protobuf-support``: Google's runtime on the
+schemas stored in the file), Foxglove's published FrameTransforms schema, Pinocchio's SE3 algebra
+for the transform tree, exact integer arithmetic for the decimation times, the JSON schemas stored
+in the file (validated with ``jsonschema``), sha256 of two independent runs, and a real SIGINT
+delivered to a recording subprocess.
 """
 
 from __future__ import annotations
@@ -23,10 +25,12 @@ import numpy as np
 import pytest
 from mcap.reader import NonSeekingReader, make_reader
 
-from sms_cli.sim.foxglove_schemas import FRAME_TRANSFORM
-from sms_cli.sim.frames import RelativePoses
-from sms_cli.sim.inspect import inspect_recording
-from sms_cli.sim.recorder import McapRecorder
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
+
+from sms_cli.recording.read import _JsonDecoderFactory, _plain
+from sms_cli.recording.frames import RelativePoses
+from sms_cli.recording.inspect import inspect_recording
+from sms_cli.recording.recorder import McapRecorder
 
 LINKS = ["base_link", "arm_1", "arm_2", "arm_3", "wheel_1", "wheel_2"]
 PARENTS = ["world", "base_link", "arm_1", "arm_2", "base_link", "base_link"]
@@ -85,12 +89,20 @@ def record_run(path, n_steps, dt=0.001, rate=None, events=True, **kw) -> McapRec
     return rec
 
 
-def read_all(path):
-    """[(topic, schema name, schema data, log_time, publish_time, payload dict)] via the mcap reader."""
+def read_all(path, flatten_tf=True):
+    """[(topic, schema name, schema data, log_time, publish_time, payload dict)] via the mcap reader
+    and the published protobuf decoder; each /tf message (foxglove.FrameTransforms) gives one row
+    per FrameTransform it holds unless ``flatten_tf`` is False."""
     out = []
     with open(path, "rb") as f:
-        for schema, channel, message in make_reader(f, validate_crcs=True).iter_messages(log_time_order=False):
-            out.append((channel.topic, schema.name, schema.data, message.log_time, message.publish_time, json.loads(message.data)))
+        reader = make_reader(f, validate_crcs=True, decoder_factories=[ProtobufDecoderFactory(), _JsonDecoderFactory()])
+        for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+            if not isinstance(decoded, dict):
+                meta = channel.metadata.get("sms.fields")
+                decoded = _plain(decoded, json.loads(meta) if meta else None)
+            rows = decoded["transforms"] if channel.topic == "/tf" and flatten_tf else [decoded]
+            for payload in rows:
+                out.append((channel.topic, schema.name, schema.data, message.log_time, message.publish_time, payload))
     return out
 
 
@@ -128,6 +140,7 @@ def test_every_topic_counts_and_monotonic_times(tmp_path):
     topics = by_topic(msgs)
     assert set(topics) == {"/tf", "/robot_description", "/events", "/log", *SCALAR_TOPICS}
     assert len(topics["/tf"]) == n * len(LINKS)
+    assert len(by_topic(read_all(path, flatten_tf=False))["/tf"]) == n  # one FrameTransforms per sample
     for topic in SCALAR_TOPICS:
         assert len(topics[topic]) == n
     assert len(topics["/events"]) == len(topics["/log"]) == 2
@@ -185,24 +198,58 @@ def test_payloads_validate_against_their_schemas(tmp_path):
         import jsonschema
     except ImportError:  # pragma: no cover - the structural checks below still run
         jsonschema = None
-    for topic, _, schema_data, _, _, payload in msgs:
+    for topic, name, schema_data, _, _, payload in msgs:
+        if topic not in ("/events", "/log", "/robot_description"):
+            continue
         schema = json.loads(schema_data)
         if jsonschema is not None:
             jsonschema.validate(payload, schema)
         for key in schema.get("required", []):
             assert key in payload, (topic, key)
     tf = by_topic(msgs)["/tf"][0]
-    assert tf[1] == "foxglove.FrameTransform"
+    assert tf[1] == "foxglove.FrameTransforms"
     payload = tf[5]
     assert set(payload) == {"timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"}
     assert set(payload["timestamp"]) == {"sec", "nsec"}
     assert set(payload["translation"]) == {"x", "y", "z"} and set(payload["rotation"]) == {"x", "y", "z", "w"}
-    # the schema stored is Foxglove's field set for FrameTransform
-    assert json.loads(tf[2])["required"] == ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"]
-    assert json.loads(tf[2]) == FRAME_TRANSFORM
+    # the schema stored is Foxglove's published FrameTransforms (foxglove-schemas-protobuf), not a copy
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+    from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+    stored = {f.name: f for f in FileDescriptorSet.FromString(tf[2]).file}
+    published = FileDescriptorSet()
+    FrameTransforms.DESCRIPTOR.file.CopyToProto(published.file.add())
+    assert stored["foxglove/FrameTransforms.proto"] == published.file[0]
     log = by_topic(msgs)["/log"]
     assert [m[5]["level"] for m in log] == [2, 3]  # foxglove.LogLevel INFO, WARNING
     assert log[1][5]["timestamp"] == {"sec": 0, "nsec": 26_000_000}
+
+
+def test_numeric_topics_are_protobuf_doubles_in_field_order(tmp_path):
+    """A numeric topic's stored schema is one double per number and a packed repeated double per
+    array, numbered in the first sample's order; the message parses with Google's runtime alone."""
+    from google.protobuf.descriptor_pb2 import FieldDescriptorProto as F, FileDescriptorSet
+    from google.protobuf.descriptor_pool import DescriptorPool
+    from google.protobuf.message_factory import GetMessageClass
+
+    path = tmp_path / "pb.mcap"
+    record_run(path, 3, events=False)
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        channel = next(c for c in summary.channels.values() if c.topic == "/joints/position")
+        schema = summary.schemas[channel.schema_id]
+        raw = [m.data for _, c, m in reader.iter_messages(topics=["/joints/position"])]
+    assert (schema.encoding, channel.message_encoding, schema.name) == ("protobuf", "protobuf", "sms.topic.joints__position")
+    fds = FileDescriptorSet.FromString(schema.data)
+    (field,) = fds.file[0].message_type[0].field
+    assert (field.name, field.number, field.type, field.label) == ("q", 1, F.TYPE_DOUBLE, F.LABEL_REPEATED)
+    pool = DescriptorPool()
+    pool.Add(fds.file[0])
+    cls = GetMessageClass(pool.FindMessageTypeByName(schema.name))
+    assert list(cls.FromString(raw[2]).q) == list(scalars_of(2)["/joints/position"]["q"])
+    # packed: tag (1 << 3 | 2), length 32, then the four doubles' bytes as they are in memory
+    assert raw[2] == bytes([0x0A, 32]) + np.asarray(scalars_of(2)["/joints/position"]["q"], "<f8").tobytes()
 
 
 FOXGLOVE_FIELD_TYPES = {"boolean", "string", "number", "integer", "object", "array"}
@@ -233,10 +280,11 @@ def test_schemas_are_in_the_subset_foxglove_parses(tmp_path):
     record_run(path, 5)
     with open(path, "rb") as f:
         schemas = make_reader(f).get_summary().schemas.values()
-    assert {s.encoding for s in schemas} == {"jsonschema"}
+    assert {s.encoding for s in schemas} == {"jsonschema", "protobuf"}
     for schema in schemas:
-        assert_foxglove_parseable(json.loads(schema.data), schema.name)
-    assert {s.name for s in schemas} >= {"foxglove.FrameTransform", "foxglove.Log", "sms.Event", "sms.attitude"}
+        if schema.encoding == "jsonschema":
+            assert_foxglove_parseable(json.loads(schema.data), schema.name)
+    assert {s.name for s in schemas} >= {"foxglove.FrameTransforms", "foxglove.Log", "sms.Event", "sms.topic.attitude"}
 
 
 def test_tf_reconstructs_world_poses_with_pinocchio(tmp_path):
@@ -257,8 +305,8 @@ def test_tf_reconstructs_world_poses_with_pinocchio(tmp_path):
         for row, link in enumerate(LINKS):
             ref = pin.XYZQUATToSE3(expected[row])
             got = world[link]
-            assert np.allclose(got.translation, ref.translation, atol=2e-8)
-            assert np.allclose(got.rotation, ref.rotation, atol=2e-8)
+            assert np.allclose(got.translation, ref.translation, atol=1e-12)  # doubles recorded exactly
+            assert np.allclose(got.rotation, ref.rotation, atol=1e-12)
 
 
 @pytest.mark.parametrize("n, python_below", [(15, 0), (15, 100), (4, 8)])
@@ -295,11 +343,9 @@ def test_scalar_values_round_trip(tmp_path):
     record_run(path, 30, events=False)
     topics = by_topic(read_all(path))
     for k, m in enumerate(topics["/attitude"]):
-        want = scalars_of(k)["/attitude"]
-        for key, value in want.items():
-            assert m[5][key] == pytest.approx(value, rel=1e-11, abs=1e-300)
+        assert m[5] == scalars_of(k)["/attitude"]  # exact: binary doubles, no decimal rounding
     q = [m[5]["q"] for m in topics["/joints/position"]]
-    assert q[29] == pytest.approx(list(scalars_of(29)["/joints/position"]["q"]), rel=1e-11)
+    assert q[29] == list(scalars_of(29)["/joints/position"]["q"])
 
 
 def test_non_finite_values(tmp_path):
@@ -314,10 +360,13 @@ def test_non_finite_values(tmp_path):
         rec.write_step(0.2, transforms=w, scalars={"/x": {"a": 3.0, "v": np.array([1.0, 2.0])}})
         rec.finish("diverged", {"reason": "NaN in state", "t": 0.1})
     topics = by_topic(read_all(path))
-    assert [m[5] for m in topics["/x"]] == [{"a": 1.0, "v": [1.0, 2.0]}, {"a": None, "v": [None, 2.0]}, {"a": 3.0, "v": [1.0, 2.0]}]
-    at = lambda t: sorted(m[5]["child_frame_id"] for m in topics["/tf"] if m[3] == t)  # noqa: E731
-    assert at(100_000_000) == sorted(set(LINKS) - {"arm_2", "arm_3"})
-    assert at(0) == at(200_000_000) == sorted(LINKS)
+    x = [m[5] for m in topics["/x"]]
+    assert x[0] == {"a": 1.0, "v": [1.0, 2.0]} and x[2] == {"a": 3.0, "v": [1.0, 2.0]}
+    assert x[1]["a"] == math.inf and math.isnan(x[1]["v"][0]) and x[1]["v"][1] == 2.0  # kept as they are
+    bad = {m[5]["child_frame_id"]: m[5] for m in topics["/tf"] if m[3] == 100_000_000}
+    assert sorted(bad) == sorted(LINKS)
+    assert math.isnan(bad["arm_2"]["translation"]["x"]) and math.isnan(bad["arm_3"]["translation"]["x"])
+    assert all(math.isfinite(v) for v in bad["arm_1"]["translation"].values())
     run = metadata(path)["run"]
     assert run["status"] == "diverged" and run["reason"] == "NaN in state" and run["t"] == "0.1"
 
@@ -429,7 +478,7 @@ CHILD = textwrap.dedent(
     """
     import sys
     import numpy as np
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.recording.recorder import McapRecorder
 
     links = ["base_link", "a", "b", "c"]
     rec = McapRecorder(sys.argv[1], mission_text="m", mission_name="m", model_summary={}, urdf_text="<robot/>",
@@ -498,7 +547,7 @@ def test_killed_process_leaves_complete_chunks(tmp_path):
     assert len(topics["/s"]) >= 200 and len(topics["/tf"]) == 4 * len(topics["/s"])
     info = inspect_recording(path)
     assert info["status"] == "killed" and "sms inspect --repair" in info["note"]
-    assert info["messages"] >= 5 * 200  # ≥ 200 samples × (4 /tf + 1 /s) were in complete chunks
+    assert info["messages"] >= 2 * 200  # ≥ 200 samples × (1 /tf + 1 /s) were in complete chunks
 
 
 def test_finish_is_idempotent_and_closes(tmp_path):
@@ -574,10 +623,10 @@ def test_inspect_summary(tmp_path):
     record_run(path, 1001, rate=100)
     info = inspect_recording(path)
     topics = {t["topic"]: t for t in info["topics"]}
-    assert topics["/tf"]["messages"] == 101 * len(LINKS) and topics["/tf"]["samples"] == 101
-    assert topics["/attitude"]["messages"] == 101 and topics["/attitude"]["schema"] == "sms.attitude"
+    assert topics["/tf"]["messages"] == 101 and topics["/tf"]["samples"] == 101  # one FrameTransforms per sample
+    assert topics["/attitude"]["messages"] == 101 and topics["/attitude"]["schema"] == "sms.topic.attitude"
     assert topics["/attitude"]["rate_hz"] == pytest.approx(100.0)
-    assert topics["/tf"]["schema"] == "foxglove.FrameTransform"
+    assert topics["/tf"]["schema"] == "foxglove.FrameTransforms"
     assert info["start_s"] == 0.0 and info["end_s"] == pytest.approx(1.0) and info["status"] == "completed"
     assert info["metadata"] == ["mission", "model", "run", "versions"] and info["attachments"] == ["robot.urdf"]
     with open(path, "rb") as f:

@@ -21,10 +21,11 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from sms_cli.recording.read import messages as read_messages
 from sms_cli.dynamics.integrator import State, rkmk4_step
 from sms_cli.mission.load import load_mission
 from sms_cli.model import compile_system
-from sms_cli.sim.inspect import format_inspection, inspect_recording
+from sms_cli.recording.inspect import format_inspection, inspect_recording
 from sms_cli.sim.schema import SimulationSpec
 from sms_cli.sim.stage import record_simulation
 from sms_cli.sim.timing import TIMING_METADATA
@@ -85,11 +86,11 @@ def _read(mcap: Path) -> tuple[dict, dict]:
         reader = make_reader(f)
         metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         topics: dict[str, tuple[list, list]] = {}
-        for _, channel, message in reader.iter_messages():
-            if channel.topic.startswith("/") and channel.topic not in ("/tf", "/events", "/log", "/robot_description"):
-                times, values = topics.setdefault(channel.topic, ([], []))
-                times.append(message.log_time / 1e9)
-                values.append(json.loads(message.data))
+    for topic, log_time, data in read_messages(mcap):
+        if topic not in ("/tf", "/events", "/log", "/robot_description"):
+            times, values = topics.setdefault(topic, ([], []))
+            times.append(log_time / 1e9)
+            values.append(data)
     return metadata, topics
 
 
@@ -213,7 +214,7 @@ def test_inspect_says_a_10_hz_recording_of_a_62_5_hz_controller_cannot_be_replay
 
 def test_inspect_checks_the_sample_times_even_when_the_metadata_says_yes(arm_run, tmp_path):
     """A recording whose metadata claims every tick but whose samples skip some is still flagged."""
-    from sms_cli.sim.inspect import replay_check
+    from sms_cli.recording.inspect import replay_check
 
     metadata, _ = _read(arm_run[1])
 

@@ -37,7 +37,7 @@ def _assert_whole(folder: Path) -> list[str]:
         elif f.suffix == ".html":
             assert f.read_text().rstrip().endswith("</html>")
         elif f.suffix == ".mcap":
-            from sms_cli.sim.inspect import inspect_recording
+            from sms_cli.recording.inspect import inspect_recording
 
             inspect_recording(f)  # raises InputError on an unfinished file
     return names

@@ -88,13 +88,12 @@ def test_simulate_runs_thrusters_in_the_python_loop(tmp_path):
     assert used > 0
     assert sum(p["propellant_used_kg"] for p in sim["phases"]) == pytest.approx(used, rel=1e-12)
     assert sim["overall"]["propellant_used_by_law_kg"] == {"mrp_feedback": used}
-    from mcap.reader import make_reader
+    from sms_cli.recording.read import messages
 
     rows: dict[str, list[dict]] = {}
-    with open(tmp_path / "out" / "simulation.mcap", "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
-            if channel.topic.startswith(("/thrusters/", "/base/wrench")):
-                rows.setdefault(channel.topic, []).append(json.loads(message.data))
+    for topic, _, data in messages(tmp_path / "out" / "simulation.mcap"):
+        if topic.startswith(("/thrusters/", "/base/wrench")):
+            rows.setdefault(topic, []).append(data)
     assert set(rows) == {"/thrusters/commanded", "/thrusters/delivered", "/thrusters/thrust", "/thrusters/propellant",
                          "/base/wrench"}
     # the plant's base wrench is the thrusters' delivered one, not the ideal command (no disturbances here)

@@ -21,16 +21,10 @@ from sms_cli.report import figstyle as S
 
 
 def read_topics(mcap_path: Path, topics: list[str]) -> dict[str, tuple[np.ndarray, list[dict]]]:
-    """topic → (times in s, decoded JSON messages) for the numeric topics asked for."""
-    from mcap.reader import make_reader
+    """topic → (times in s, decoded messages) for the numeric topics asked for."""
+    from sms_cli.recording.read import topic_series
 
-    out: dict[str, tuple[list, list]] = {t: ([], []) for t in topics}
-    with open(mcap_path, "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages(topics=topics):
-            ts, rows = out[channel.topic]
-            ts.append(message.log_time / 1e9)
-            rows.append(json.loads(message.data))
-    return {t: (np.array(ts), rows) for t, (ts, rows) in out.items() if ts}
+    return {t: (np.array(ts), rows) for t, (ts, rows) in topic_series(mcap_path, topics).items()}
 
 
 @S.styled

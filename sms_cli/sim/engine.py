@@ -17,7 +17,7 @@ from sms_cli.sim.actuators import WheelArray, clip_joint_torque
 from sms_cli.sim.attitude_math import attitude_error
 from sms_cli.sim.interfaces import ArmRef, EndEffectorRef
 from sms_cli.sim.metrics import Trace, conservation, summarize
-from sms_cli.sim.recorder import RecordingInterrupted
+from sms_cli.recording.recorder import RecordingInterrupted
 from sms_cli.sim.references import AttitudeProfile, JointProfile
 from sms_cli.sim.schema import PhaseSpec, SimulationSpec
 from sms_cli.sim.sensors import Sensors
@@ -138,7 +138,7 @@ class Simulation:
             if unsupported_reason(sm) is None:
                 self.plant = CompiledPlant(sm)
         if recorder is not None and not self.compiled_loop:
-            from sms_cli.sim.record_buffer import RecordBuffer
+            from sms_cli.recording.buffer import RecordBuffer
 
             from sms_cli.sim.timing import records_base_wrench
 

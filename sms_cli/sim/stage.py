@@ -147,7 +147,7 @@ def _simulate(loaded: LoadedMission, sm, spec, plans, results: ResultsDir, mcap_
               progress: bool | None, gains_dir: Path) -> tuple[dict, SimResult]:
     from sms_cli.model.summary import model_summary
     from sms_cli.sim.engine import Simulation
-    from sms_cli.sim.recorder import McapRecorder
+    from sms_cli.recording.recorder import McapRecorder
     from sms_cli.sim.timing import TIMING_METADATA, timing_metadata
 
     summary = model_summary(sm)

@@ -169,7 +169,7 @@ def frame_poses(oR, op, f_joint, f_R, f_p, out):
 def relative_poses(world, parent, out):
     """Pose of each frame in its parent frame (row ``parent[k]``, −1: the world), from world
     poses [x y z qx qy qz qw]: translation R_pᵀ (r_c − r_p), rotation q_p* ⊗ q_c
-    (``sms_cli.sim.frames.RelativePoses``)."""
+    (``sms_cli.recording.frames.RelativePoses``)."""
     for k in range(world.shape[0]):
         p = parent[k]
         if p < 0:

@@ -22,7 +22,7 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
     loop's on ``loop_tree`` (the 12 arrays of ``SampleKinematics.tree``), else ``plant``'s (a ``CompiledPlant``; ``stops``: with the joint-stop
     kernels); ``recording``: the ``SampleKinematics`` a recording samples with, False for one recorded
     without compiled kinematics, None for no recording."""
-    from sms_cli.sim.mcap_block import warm_call
+    from sms_cli.recording.encoding import warm_call
 
     groups: list[list[KernelCall]] = []
     if loop_tree is not None:

@@ -16,8 +16,8 @@ import numpy as np
 from sms_cli.model.system import SystemModel
 from sms_cli.sim.attitude_math import attitude_error
 from sms_cli.sim.compiled.kinematics import SampleKinematics
-from sms_cli.sim.record_buffer import RecordBuffer
-from sms_cli.sim.recorder import RecordingInterrupted
+from sms_cli.recording.buffer import RecordBuffer
+from sms_cli.recording.recorder import RecordingInterrupted
 from sms_cli.sim.schema import SimulationSpec
 from sms_cli.sim.timing import records_base_wrench
 

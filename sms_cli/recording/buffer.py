@@ -4,7 +4,7 @@ The loop reserves a sample with ``recorder.take(t)`` and ``add``s its raw state 
 array copies); every ``capacity`` samples, at each event and at the end, the block's link poses
 come from one compiled call (``SampleKinematics``; per-sample Pinocchio forward kinematics when
 the model does not fit the compiled kernels) and one compiled pass encodes the messages.
-Topics and values are those of ``sms_cli.sim.topics.numeric_topics``.
+Topics and values are those of ``sms_cli.recording.topics.numeric_topics``.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.model.system import SystemModel
-from sms_cli.sim.topics import numeric_topics
+from sms_cli.recording.topics import numeric_topics
 
 
 class RecordBuffer:
@@ -36,7 +36,7 @@ class RecordBuffer:
     def warm_calls(self) -> list:
         """The recording's kernel calls (one group), for ``sms_cli.sim.compiled.warmup.warm``: the
         block kinematics (when compiled) and the message encoding."""
-        from sms_cli.sim.mcap_block import warm_call
+        from sms_cli.recording.encoding import warm_call
 
         return [([self.kinematics.warm_call()] if self.kinematics is not None else []) + [warm_call()]]
 

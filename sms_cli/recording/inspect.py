@@ -350,7 +350,7 @@ def inspect_recording(path: str | Path) -> dict[str, Any]:
         schema = schemas.get(channel.schema_id)
         first = t0 / 1e9 if t0 is not None else None
         last = t1 / 1e9 if t1 is not None else None
-        # rate of distinct times (samples per second): /tf carries one message per link per sample
+        # rate of distinct times (samples per second)
         rate = (len(stamps) - 1) / (last - first) if len(stamps) > 1 and last > first else None
         topics.append(
             {
@@ -432,7 +432,7 @@ def repair_recording(path: str | Path) -> dict[str, Any]:
     A recording without ``run`` metadata (killed) gets ``run.status = killed``. Returns what was
     kept: messages, chunks, damaged chunks dropped, last time (s)."""
     from sms_cli.results import atomic_path
-    from sms_cli.sim.mcap_writer import ChunkedMcapWriter
+    from sms_cli.recording.writer import ChunkedMcapWriter
 
     path = Path(path)
     if not path.is_file():

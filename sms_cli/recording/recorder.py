@@ -15,20 +15,22 @@ Usage (the simulator's side)::
 What lands in the file (all times are simulation time: log time = publish time = t in ns, from
 t = 0; Foxglove shows them as dates in January 1970):
 
-- ``/tf`` (``foxglove.FrameTransform``, JSON): one message per link per sample, the pose of the
-  link in its parent link (URDF tree) or in ``world`` for the base, so the URDF drawn by
-  Foxglove's 3D panel moves. ``transforms`` rows are world poses ``[x y z qx qy qz qw]`` (m, unit
-  quaternion, scalar last); the recorder converts them to parent-relative poses. A link whose
-  pose is not finite is left out of that sample (the schema has no "unknown").
-- ``/robot_description`` (``{data: urdf}``): the URDF once, at the first recorded time. In
+- ``/tf`` (``foxglove.FrameTransforms``, protobuf, Foxglove's published schema): one message per
+  sample holding every link's ``FrameTransform``, the pose of the link in its parent link (URDF
+  tree) or in ``world`` for the base, so the URDF drawn by Foxglove's 3D panel moves.
+  ``transforms`` rows are world poses ``[x y z qx qy qz qw]`` (m, unit quaternion, scalar last);
+  the recorder converts them to parent-relative poses. Values are doubles, written as they are
+  (a pose that is not finite is recorded as such).
+- ``/robot_description`` (``{data: urdf}``, JSON): the URDF once, at the first recorded time. In
   Foxglove's 3D panel, tick the ``/robot_description`` topic (off by default) and choose
   ``world`` as the display frame. The URDF is also stored as the attachment ``robot.urdf``.
   Meshes referenced by ``package://`` URIs do not resolve from a file; primitives do.
-- numeric topics (``scalars``): one JSON object per topic per sample, with a schema per topic
-  (``sms.<topic with dots>``). Plot them in Foxglove as ``/wheels/speed.rw1`` or
-  ``/joints/position.q[2]`` (field names made of letters, digits and _ are the easiest to
-  address there; any non-empty name is accepted). Fields are numbers or fixed-length arrays; a non-finite value is
-  written as ``null``. Numbers are printed with 12 significant digits (``%.12g``).
+- numeric topics (``scalars``): one protobuf message per topic per sample, with a message type per
+  topic (``sms.topic.<path>``, ``sms_cli.recording.schemas``): a ``double`` per number, a packed
+  ``repeated double`` per array, exact (no decimal rounding; NaN and infinities kept). Plot them
+  in Foxglove as ``/wheels/speed.rw1`` or ``/joints/position.q[2]``; a field name that is not a
+  protobuf identifier is sanitised (``rw-1`` → ``rw_1``) and the channel's ``sms.fields`` metadata
+  keeps the recorded names.
 - ``/events`` (``sms.Event``: t, name, level, detail) and the same text on ``/log``
   (``foxglove.Log``, for Foxglove's Log panel).
 - metadata records ``mission`` (name, text, sha256), ``model`` (summary; non-string values as
@@ -57,8 +59,8 @@ back to its last whole chunk and raises the ``OSError``; the file stays readable
 ``with``, the file opens at the first write and ``finish()`` must be called; signals are then
 not handled.
 
-Cost (``benches/bench_recorder.py``): a recorded sample of 15 links + 8 topics ≈ 50 µs, a
-skipped call ≈ 0.1 µs, ≈ 1.6 MB per 1000 such samples (zstd level 1).
+Cost: ``benches/bench_recorder.py`` (µs per recorded sample, per-sample and block paths, and
+Foxglove's own SDK writer on the same samples).
 """
 
 from __future__ import annotations
@@ -70,15 +72,16 @@ import re
 import signal
 import threading
 from pathlib import Path
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from sms_cli import __version__
-from sms_cli.sim import foxglove_schemas as fs
-from sms_cli.sim.frames import RelativePoses
-from sms_cli.sim.mcap_block import Templates, encode_records
-from sms_cli.sim.mcap_writer import MESSAGE_FIXED, MESSAGE_HEADER, ChunkedMcapWriter, available_compression
+from sms_cli.recording import schemas as fs
+from sms_cli.recording.encoding import Template, Templates, frame_transform
+from sms_cli.recording.frames import RelativePoses
+from sms_cli.recording.writer import ChunkedMcapWriter, available_compression
 
 TOPIC_TF = "/tf"
 TOPIC_ROBOT_DESCRIPTION = "/robot_description"
@@ -89,11 +92,6 @@ WORLD_FRAME = "world"
 RUN_STATUSES = ("completed", "diverged", "interrupted", "failed")
 
 _TOPIC_RE = re.compile(r"^(/[A-Za-z0-9_]+)+$")
-_SEP = b"\x00"  # never inside JSON text (control characters are escaped in strings)
-_TS_MARK = b"\x01"  # marker where the timestamp object goes inside /tf templates
-_NUM = b"%.12g"
-_NANO = b"%de-9"  # a pose number as an integer count of 1e-9 (valid JSON: 1234567890e-9 = 1.23456789)
-_NANO_LIMIT = 9.0e9  # |value| below which value·1e9 fits an int64
 _PERIOD_TOL = 1e-6  # decimation tolerance, fraction of the period
 
 
@@ -125,12 +123,6 @@ def _dumps(obj: Any) -> str:
     return json.dumps(_jsonable(obj), sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
-def _number_bytes(v: Any) -> bytes:
-    """``%.12g`` of a finite number, ``null`` otherwise (slow path of non-finite samples)."""
-    f = float(v)
-    return _NUM % f if math.isfinite(f) else b"null"
-
-
 def _json_bytes(text: str) -> bytes:
     return json.dumps(text, ensure_ascii=False).encode()
 
@@ -152,31 +144,27 @@ def _to_ns(t: float) -> int:
 
 
 class _ScalarPlan:
-    """Encoding plan for one set of numeric topics (the keys of a ``scalars`` dict, in order)."""
+    """Encoding plan for one set of numeric topics (the keys of a ``scalars`` dict, in order): per
+    topic its fields (name, 0 for a number or the array length), channel and message template."""
 
-    def __init__(self, topics: list[str], fields: list[list[tuple[str, int]]], channels: list[int], indexes: list[list[int]]):
+    def __init__(self, topics: list[str], fields: list[list[tuple[str, int]]], channels: list[int]):
         self.topics = topics
         self.fields = fields
         self.channels = channels
-        self.indexes = indexes
-        parts_num = []
-        parts_str = []
-        for spec in fields:
-            pieces_num = []
-            pieces_str = []
-            for name, n in spec:
-                key = json.dumps(name, ensure_ascii=False).encode().replace(b"%", b"%%") + b":"
-                if n == 0:
-                    pieces_num.append(key + _NUM)
-                    pieces_str.append(key + b"%b")
-                else:
-                    pieces_num.append(key + b"[" + b",".join([_NUM] * n) + b"]")
-                    pieces_str.append(key + b"[" + b",".join([b"%b"] * n) + b"]")
-            parts_num.append(b"{" + b",".join(pieces_num) + b"}")
-            parts_str.append(b"{" + b",".join(pieces_str) + b"}")
-        self.template = _SEP.join(parts_num)
-        self.template_str = _SEP.join(parts_str)
+        self.templates = [_topic_template(spec) for spec in fields]
         self.rows = list(zip(topics, fields))
+
+
+def _topic_template(spec: list[tuple[str, int]]) -> Template:
+    """The message of a numeric topic (``schemas.numeric_topic_descriptor``): field k + 1 is
+    spec[k], a double or a packed repeated double."""
+    t = Template()
+    for number, (_, n) in enumerate(spec, start=1):
+        if n:
+            t.packed_doubles(number, n)
+        else:
+            t.double_field(number)
+    return t.done()
 
 
 class McapRecorder:
@@ -244,9 +232,8 @@ class McapRecorder:
         # transform tree
         self._links: list[str] | None = None
         self._tf_rel: RelativePoses | None = None
-        self._tf_template = b""
+        self._tf_template: Template | None = None
         self._tf_channel = 0
-        self._tf_index: list[int] | None = None
 
         # numeric topics
         self._topic_fields: dict[str, list[tuple[str, int]]] = {}
@@ -298,13 +285,10 @@ class McapRecorder:
                     raise ValueError(f"recorder: the parent chain of link {links[start]!r} has a cycle")
         self._links = links
         self._tf_rel = None if relative or all(p < 0 for p in pidx) else RelativePoses(pidx)
-        pose = b'"translation":{"x":%b,"y":%b,"z":%b},"rotation":{"x":%b,"y":%b,"z":%b,"w":%b}}'
-        heads = []
+        tpl = Template()
         for link, parent in zip(links, parents):
-            names = b',"parent_frame_id":%b,"child_frame_id":%b,' % (_json_bytes(parent), _json_bytes(link))
-            heads.append(b'{"timestamp":' + _TS_MARK + names.replace(b"%", b"%%"))
-        self._tf_pieces = [head + pose % ((_NUM,) * 7) for head in heads]  # slow path: %.12g per link
-        self._tf_template = _SEP.join(head + pose % ((_NANO,) * 7) for head in heads)
+            frame_transform(tpl, 1, parent, link)  # FrameTransforms.transforms (field 1), one per link
+        self._tf_template = tpl.done()
         if self._w is not None:
             self._busy = True
             try:
@@ -314,9 +298,8 @@ class McapRecorder:
 
     def _register_tf(self) -> None:
         w = self._w
-        sid = w.register_schema(fs.FRAME_TRANSFORM["title"], "jsonschema", fs.schema_bytes(fs.FRAME_TRANSFORM))
-        self._tf_channel = w.register_channel(TOPIC_TF, "json", sid)
-        self._tf_index = w.channel_index(self._tf_channel)
+        sid = w.register_schema(fs.FRAME_TRANSFORMS_NAME, "protobuf", fs.frame_transforms_descriptor())
+        self._tf_channel = w.register_channel(TOPIC_TF, "protobuf", sid)
 
     def _open(self) -> None:
         if self._w is not None:
@@ -460,6 +443,7 @@ class McapRecorder:
         return self._record(t, transforms, scalars)
 
     def _record(self, t: float, transforms, scalars) -> bool:
+        """One sample, as a block of one (the same encoding as ``write_block``)."""
         if self.finished:
             raise RuntimeError("recorder: write_step after finish()")
         ts = _to_ns(t)
@@ -467,54 +451,23 @@ class McapRecorder:
             if ts == self._last_ts:
                 return False  # already recorded at this time (e.g. a forced final sample)
             raise ValueError(f"recorder: time went backwards: t = {t!r} s after a sample at {self._last_ts / 1e9!r} s")
-        if self._w is None:
-            self._ensure_open()
-
-        # encode everything first: a bad argument raises before anything is appended
-        tf_payloads = self._encode_tf(ts, transforms) if transforms is not None else None
+        block_tf = None
+        if transforms is not None:
+            if self._links is None:
+                raise ValueError("recorder: transforms given but add_transform_tree was not called")
+            world = np.asarray(transforms, dtype=float)
+            n = len(self._links)
+            if world.shape != (n, 7):
+                raise ValueError(f"recorder: transforms must have shape ({n}, 7) (one [x y z qx qy qz qw] row per link), got {world.shape}")
+            block_tf = world[None]
+        block_scalars = None
         if scalars:
-            plan = self._plans.get(tuple(scalars))
-            if plan is None:
-                self._busy = True
-                try:
-                    plan = self._plan(scalars)
-                finally:
-                    self._end_busy()
-            payloads = self._encode_scalars(plan, scalars)
-        else:
-            plan = payloads = None
-
-        self._busy = True
-        try:
-            if not self._started:
-                self._start(ts)
-            w = self._w
-            buf = w.chunk_buffer()
-            pack = MESSAGE_HEADER.pack
-            seq = self._samples & 0xFFFFFFFF
-            if tf_payloads:
-                cid = self._tf_channel
-                index = self._tf_index
-                for data in tf_payloads:
-                    index.append(ts)
-                    index.append(len(buf))
-                    buf += pack(5, MESSAGE_FIXED + len(data), cid, seq, ts, ts)
-                    buf += data
-            if payloads is not None:
-                for cid, index, data in zip(plan.channels, plan.indexes, payloads):
-                    index.append(ts)
-                    index.append(len(buf))
-                    buf += pack(5, MESSAGE_FIXED + len(data), cid, seq, ts, ts)
-                    buf += data
-            if len(buf) >= w.chunk_size:
-                w.flush_chunk()
-            self._samples += 1
-            self._last_ts = ts
-            if self._t0 is None:
-                self._t0 = t
-            self._next_t = self._next_due(t, self._t0)
-        finally:
-            self._end_busy()
+            block_scalars = {}
+            for topic, fields in scalars.items():
+                if not isinstance(fields, Mapping):
+                    raise ValueError(f"recorder: scalars[{topic!r}] must be a non-empty dict of field → value")
+                block_scalars[topic] = {name: np.asarray(value)[None] for name, value in fields.items()}
+        self._write_samples(np.array([float(t)]), np.array([ts], dtype=np.int64), block_tf, block_scalars, False)
         return True
 
     def _next_due(self, t: float, t0: float) -> float:
@@ -556,11 +509,9 @@ class McapRecorder:
         ``transforms`` (n, n_links, 7) world poses (``relative``: already each link's pose in its
         parent, as /tf carries them), ``scalars`` topic → {field: (n,) or (n, k)}.
         The same messages as n ``write_step(..., force=True)`` calls, encoded and framed in one
-        compiled pass (``mcap_block``); a block with a non-finite or huge pose falls back to
-        those calls."""
+        compiled pass (``sms_cli.recording.encoding``)."""
         times = np.asarray(times, dtype=float)
-        n = times.size
-        if n == 0:
+        if times.size == 0:
             return
         if self.finished:
             raise RuntimeError("recorder: write_block after finish()")
@@ -569,23 +520,27 @@ class McapRecorder:
             raise ValueError("recorder: block times must be finite, ≥ 0 and strictly increasing")
         if ts[0] <= self._last_ts:
             raise ValueError(f"recorder: time went backwards: block from {times[0]!r} s after a sample at {self._last_ts / 1e9!r} s")
+        self._write_samples(times, ts, transforms, scalars, relative)
+
+    def _write_samples(self, times: np.ndarray, ts: np.ndarray, transforms, scalars, relative: bool) -> None:
+        """Encode and append n samples (times checked by the caller): /tf, then the numeric topics."""
+        n = times.size
         if self._w is None:
             self._ensure_open()
         columns = []  # one row of numbers per sample, in template order
-        n_tf = 0
+        templates = []
+        channels = []
         if transforms is not None:
-            rel = self._block_poses(transforms, n, relative)
-            scaled = rel * 1e9
-            if not (-_NANO_LIMIT * 1e9 < scaled.min() and scaled.max() < _NANO_LIMIT * 1e9):  # False for NaN
-                return self._write_rows(times, rel if self._tf_rel is None or relative else transforms, scalars,
-                                        relative)
-            n_tf = len(self._links)
-            sec, nsec = np.divmod(ts, 1_000_000_000)
-            stamp = np.broadcast_to(np.stack([sec, nsec], axis=1)[:, None, :].astype(float), (n, n_tf, 2))
-            columns.append(np.concatenate([stamp, scaled.reshape(n, n_tf, 7)], axis=2).reshape(n, -1))
+            columns.append(self._block_poses(transforms, n, relative).reshape(n, -1))
+            templates.append(self._tf_template)
+            channels.append(self._tf_channel)
         plan = None
         if scalars:
-            first = {topic: {name: np.asarray(val)[0] for name, val in fields.items()} for topic, fields in scalars.items()}
+            first = {}
+            for topic, fields in scalars.items():
+                if not isinstance(fields, Mapping):
+                    raise ValueError(f"recorder: scalars[{topic!r}] must be a non-empty dict of field → value")
+                first[topic] = {name: np.asarray(val)[0] if np.ndim(val) else val for name, val in fields.items()}
             plan = self._plans.get(tuple(first))
             if plan is None:
                 self._busy = True
@@ -594,25 +549,22 @@ class McapRecorder:
                 finally:
                     self._end_busy()
             columns.append(self._block_values(plan, scalars, n))
-        key = (n_tf, tuple(plan.topics) if plan is not None else ())
+            templates += plan.templates
+            channels += plan.channels
+        if not templates:
+            return
+        key = (transforms is not None, tuple(plan.topics) if plan is not None else ())
         tpl = self._block_templates.get(key)
         if tpl is None:
-            stamp_tpl = b'{"sec":%d,"nsec":%d}'
-            texts = [piece.replace(_TS_MARK, stamp_tpl) for piece in self._tf_template.split(_SEP)] if n_tf else []
-            texts += plan.template.split(_SEP) if plan is not None else []
-            tpl = self._block_templates[key] = (Templates(texts), np.array(
-                [self._tf_channel] * n_tf + (list(plan.channels) if plan is not None else []), dtype=np.int64))
-        templates, channels = tpl
-        values = np.ascontiguousarray(np.hstack(columns), dtype=float)
-        out = np.empty(templates.capacity(n), dtype=np.uint8)
-        offsets = np.empty(n * templates.n_messages, dtype=np.int64)
+            tpl = self._block_templates[key] = (Templates(templates), np.array(channels, dtype=np.int64))
+        compiled, channel_ids = tpl
+        values = np.hstack(columns) if len(columns) > 1 else columns[0]
         self._busy = True
         try:
             if not self._started:
                 self._start(int(ts[0]))
-            end = encode_records(templates.lit, templates.lit_start, templates.lit_len, templates.code,
-                                 templates.piece_start, values, channels, self._samples, ts, out, offsets)
-            self._append_records(out, end, offsets, np.repeat(ts, templates.n_messages), np.tile(channels, n))
+            out, end, offsets = compiled.encode(values, channel_ids, self._samples, ts)
+            self._append_records(out, end, offsets, ts, channel_ids)
             self._samples += n
             self._last_ts = int(ts[-1])
             if self._t0 is None:
@@ -621,36 +573,33 @@ class McapRecorder:
         finally:
             self._end_busy()
 
-    def _write_rows(self, times, transforms, scalars, relative: bool) -> None:
-        """The per-sample path for a block (non-finite or huge poses need its slow encoding)."""
-        tf_rel = self._tf_rel
-        if relative:
-            self._tf_rel = None  # the rows are parent-relative already
-        try:
-            for i, t in enumerate(times):
-                row = {topic: {name: np.asarray(val)[i] for name, val in fields.items()}
-                       for topic, fields in (scalars or {}).items()}
-                self._record(float(t), None if transforms is None else np.asarray(transforms)[i], row or None)
-        finally:
-            self._tf_rel = tf_rel
-
-    def _append_records(self, out: np.ndarray, end: int, offsets: np.ndarray, msg_ts: np.ndarray,
-                        msg_channel: np.ndarray) -> None:
-        """Move framed records into chunks (flushing full ones) and extend the message indexes."""
+    def _append_records(self, out: np.ndarray, end: int, offsets: np.ndarray, ts: np.ndarray,
+                        channel_ids: np.ndarray) -> None:
+        """Move framed records (``channel_ids`` (m,) per sample, sample s stamped ``ts[s]``) into
+        chunks, flushing full ones, and extend the message indexes. A chunk holds whole samples, so
+        a killed run leaves none cut."""
         w = self._w
+        m = channel_ids.size
         rec_end = np.append(offsets[1:], end)
         total = offsets.size
+        cids = channel_ids.tolist()
         i = 0
         while i < total:
             buf = w.chunk_buffer()
             room = max(w.chunk_size - len(buf), 1)
-            j = min(int(np.searchsorted(rec_end, offsets[i] + room, side="left")) + 1, total)
+            j = int(np.searchsorted(rec_end, offsets[i] + room, side="left")) + 1
+            j = min(-(-j // m) * m, total)  # up to the end of that record's sample
             base = len(buf) - int(offsets[i])
             buf += out[offsets[i]:rec_end[j - 1]].data
-            chans = msg_channel[i:j]
-            for cid in np.unique(chans).tolist():
-                sel = np.nonzero(chans == cid)[0] + i
-                w.channel_index(cid).extend(np.column_stack([msg_ts[sel], offsets[sel] + base]).ravel().tolist())
+            starts = (offsets[i:j] + base).reshape(-1, m)
+            stamps = ts[i // m:j // m]
+            if stamps.size == 1:
+                t = int(stamps[0])
+                for cid, start in zip(cids, starts[0].tolist()):
+                    w.channel_index(cid).extend((t, start))
+            else:
+                for k, cid in enumerate(cids):
+                    w.channel_index(cid).extend(np.column_stack([stamps, starts[:, k]]).ravel().tolist())
             if len(buf) >= w.chunk_size:
                 w.flush_chunk()
             i = j
@@ -682,34 +631,16 @@ class McapRecorder:
             if len(fields) != len(spec) or any(name not in fields for name, _ in spec):
                 raise ValueError(f"recorder: the fields of {topic} changed: first {spec}, now {sorted(fields)}")
             for name, k in spec:
-                col = np.asarray(fields[name], dtype=float)
+                try:
+                    col = np.asarray(fields[name], dtype=float)
+                except (TypeError, ValueError):
+                    raise ValueError(f"recorder: {topic}.{name} is not numeric: {fields[name]!r}") from None
                 want = (n,) if k == 0 else (n, k)
                 if col.shape != want:
-                    raise ValueError(f"recorder: block field {topic}.{name} must have shape {want}, got {col.shape}")
+                    raise ValueError(f"recorder: the fields of {topic} changed: {name} must have shape {want} "
+                                     f"(first {spec}; 0 = number, n = array length), got {col.shape}")
                 cols.append(col.reshape(n, -1))
         return np.hstack(cols)
-
-    def _encode_tf(self, ts: int, transforms) -> list[bytes]:
-        if self._links is None:
-            raise ValueError("recorder: transforms given but add_transform_tree was not called")
-        world = transforms if isinstance(transforms, np.ndarray) else np.asarray(transforms, dtype=float)
-        n = len(self._links)
-        if world.shape != (n, 7):
-            raise ValueError(f"recorder: transforms must have shape ({n}, 7) (one [x y z qx qy qz qw] row per link), got {world.shape}")
-        rel = world if self._tf_rel is None else self._tf_rel(world)
-        scaled = rel * 1e9
-        if -_NANO_LIMIT * 1e9 < scaled.min() and scaled.max() < _NANO_LIMIT * 1e9:  # False for NaN
-            text = self._tf_template % tuple(np.rint(scaled).astype(np.int64).ravel().tolist())
-            return text.replace(_TS_MARK, _time_json(ts)).split(_SEP)
-        # slow path (non-finite or beyond ±9e9): %.12g, and links whose pose is not finite left out
-        stamp = _time_json(ts)
-        flat = rel.ravel().tolist()
-        out = []
-        for i, piece in enumerate(self._tf_pieces):
-            row = flat[7 * i : 7 * i + 7]
-            if all(math.isfinite(v) for v in row):
-                out.append((piece % tuple(row)).replace(_TS_MARK, stamp))
-        return out
 
     def _plan(self, scalars: Mapping[str, Mapping[str, Any]]) -> _ScalarPlan:
         """Validate a new set of topics, register the new ones, and build their templates."""
@@ -742,59 +673,14 @@ class McapRecorder:
                 raise ValueError(f"recorder: the fields of {topic} changed: first {known}, now {spec}")
             fields_all.append(spec)
         channels = [self._topic_channels[t] for t in topics]
-        plan = _ScalarPlan(topics, fields_all, channels, [self._w.channel_index(c) for c in channels])
+        plan = _ScalarPlan(topics, fields_all, channels)
         self._plans[tuple(topics)] = plan
         return plan
 
     def _register_topic(self, topic: str, spec: list[tuple[str, int]]) -> None:
-        schema = fs.numeric_topic_schema(topic, spec)
-        sid = self._w.register_schema(schema["title"], "jsonschema", fs.schema_bytes(schema))
-        self._topic_channels[topic] = self._w.register_channel(topic, "json", sid)
-
-    def _encode_scalars(self, plan: _ScalarPlan, scalars) -> list[bytes]:
-        vals: list = []
-        app = vals.append
-        ext = vals.extend
-        try:
-            for topic, spec in plan.rows:
-                fields = scalars[topic]
-                if len(fields) != len(spec):
-                    raise KeyError
-                for name, n in spec:
-                    v = fields[name]
-                    if n:
-                        try:
-                            lst = v.tolist()
-                        except AttributeError:
-                            lst = list(v)
-                        if len(lst) != n:
-                            raise KeyError
-                        ext(lst)
-                    else:
-                        app(v)
-            total = sum(vals)
-            if total - total == 0:
-                return (plan.template % tuple(vals)).split(_SEP)
-            return (plan.template_str % tuple(_number_bytes(v) for v in vals)).split(_SEP)
-        except (KeyError, TypeError, ValueError):
-            raise ValueError(self._scalar_mismatch(plan, scalars)) from None
-
-    def _scalar_mismatch(self, plan: _ScalarPlan, scalars) -> str:
-        for topic, spec in plan.rows:
-            fields = scalars[topic]
-            want = {name: n for name, n in spec}
-            got = {}
-            for name, value in fields.items():
-                arr = np.asarray(value)
-                got[name] = 0 if arr.ndim == 0 else (arr.size if arr.ndim == 1 else arr.shape)
-            if got != want:
-                return f"recorder: the fields of {topic} changed: first {spec}, now {sorted(got.items())} (0 = number, n = array length)"
-            for name, _ in spec:
-                try:
-                    np.asarray(fields[name], dtype=float)
-                except (TypeError, ValueError):
-                    return f"recorder: {topic}.{name} is not numeric: {fields[name]!r}"
-        return "recorder: scalars are not numbers or arrays of numbers"
+        name, data, meta = fs.numeric_topic_descriptor(topic, spec)
+        sid = self._w.register_schema(name, "protobuf", data)
+        self._topic_channels[topic] = self._w.register_channel(topic, "protobuf", sid, meta or None)
 
     def write_event(self, t: float, name: str, detail: Mapping[str, Any] | None = None, *, level: str = "info") -> None:
         """Record an event (phase change, saturation start, divergence…) on ``/events`` and ``/log``.
@@ -812,7 +698,7 @@ class McapRecorder:
             raise ValueError(f"recorder: event time went backwards: {t!r} s after an event at {self._last_event_ts / 1e9!r} s")
         detail_json = _dumps(detail or {})
         event = b'{"t":%b,"name":%b,"level":"%b","detail":%b}' % (
-            _number_bytes(t), json.dumps(str(name), ensure_ascii=False).encode(), level.encode(), detail_json.encode()
+            repr(float(t)).encode() if math.isfinite(float(t)) else b"null", json.dumps(str(name), ensure_ascii=False).encode(), level.encode(), detail_json.encode()
         )
         message = str(name) if detail_json == "{}" else f"{name} {detail_json}"
         log = b'{"timestamp":%b,"level":%d,"message":%b,"name":"sms.simulate","file":"","line":0}' % (
