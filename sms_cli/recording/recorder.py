@@ -593,13 +593,8 @@ class McapRecorder:
             buf += out[offsets[i]:rec_end[j - 1]].data
             starts = (offsets[i:j] + base).reshape(-1, m)
             stamps = ts[i // m:j // m]
-            if stamps.size == 1:
-                t = int(stamps[0])
-                for cid, start in zip(cids, starts[0].tolist()):
-                    w.channel_index(cid).extend((t, start))
-            else:
-                for k, cid in enumerate(cids):
-                    w.channel_index(cid).extend(np.column_stack([stamps, starts[:, k]]).ravel().tolist())
+            for k, cid in enumerate(cids):
+                w.add_index_block(cid, stamps, starts[:, k])
             if len(buf) >= w.chunk_size:
                 w.flush_chunk()
             i = j

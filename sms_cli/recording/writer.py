@@ -24,7 +24,7 @@ undone: the file is cut back to the last whole record and its end marker rewritt
 kept in ``failed`` and raised again by any later chunk write; ``finish()`` still tries to write
 the summary of what is on disk.
 
-Not thread-safe; the caller keeps the object consistent (see ``recorder.McapRecorder`` for the
+Not thread-safe: one thread uses the object (see ``recorder.McapRecorder`` for the
 deferral of Ctrl-C while a write is in progress).
 """
 
@@ -33,6 +33,8 @@ from __future__ import annotations
 import struct
 import zlib
 from typing import BinaryIO
+
+import numpy as np
 
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
@@ -137,6 +139,7 @@ class ChunkedMcapWriter:
         self._channel_ids: dict[str, int] = {}
         self._chunk = bytearray()
         self._index: dict[int, list[int]] = {}  # channel -> flat [log_time, offset, ...]
+        self._blocks: dict[int, list[np.ndarray]] = {}  # channel -> (k, 2) uint64 [log_time, offset] rows
         self._chunk_indexes: list[ChunkIndex] = []
         self._attachment_indexes: list[AttachmentIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
@@ -190,7 +193,8 @@ class ChunkedMcapWriter:
     @property
     def message_count(self) -> int:
         """Messages added so far (including those in the open chunk)."""
-        return self._message_count + sum(len(v) // 2 for v in self._index.values())
+        return (self._message_count + sum(len(v) // 2 for v in self._index.values())
+                + sum(len(a) for blocks in self._blocks.values() for a in blocks))
 
     # -- registration ----------------------------------------------------------------------
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
@@ -214,6 +218,7 @@ class ChunkedMcapWriter:
         self._channels.append(channel)
         self._channel_ids[topic] = channel.id
         self._index[channel.id] = []
+        self._blocks[channel.id] = []
         self._chunk += _record_bytes(channel)
         return channel.id
 
@@ -242,21 +247,45 @@ class ChunkedMcapWriter:
         """
         return self._index[channel_id]
 
+    def add_index_block(self, channel_id: int, log_times: np.ndarray, offsets: np.ndarray) -> None:
+        """Index entries of messages a caller packed into the open chunk itself, as arrays (offsets
+        into the chunk buffer): the block path's form of ``channel_index``."""
+        self._blocks[channel_id].append(np.column_stack([log_times, offsets]).astype(np.uint64))
+
+    def _entries(self, channel_id: int) -> np.ndarray:
+        """The open chunk's index entries of a channel, (k, 2) uint64, in the order added."""
+        parts = self._blocks[channel_id]
+        lst = self._index[channel_id]
+        if lst:
+            parts = [np.array(lst, dtype=np.uint64).reshape(-1, 2)] + parts
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
     def maybe_flush(self) -> None:
         """Write the open chunk if it has grown past ``chunk_size``."""
         if len(self._chunk) >= self.chunk_size:
             self.flush_chunk()
 
     def flush_chunk(self) -> None:
-        """Compress and write the open chunk and its message indexes (no-op when it holds no message)."""
+        """Compress and write the open chunk and its message indexes (no-op when it holds no
+        message)."""
         if self.failed is not None:
             raise self.failed
-        live = [(cid, lst) for cid, lst in self._index.items() if lst]
+        live = [(cid, self._entries(cid)) for cid in self._index if self._index[cid] or self._blocks[cid]]
         if not live:
             return
-        t0 = min(lst[0] for _, lst in live)
-        t1 = max(max(lst[0::2]) for _, lst in live)
+        t0 = int(min(int(e[:, 0].min()) for _, e in live))
+        t1 = int(max(int(e[:, 0].max()) for _, e in live))
         raw = bytes(self._chunk)
+        index = [(cid, e.astype("<u8").tobytes(), len(e)) for cid, e in live]
+        self._chunk.clear()
+        for cid, _ in live:
+            self._index[cid].clear()
+            self._blocks[cid].clear()
+        self._write_chunk(raw, t0, t1, index)
+
+    def _write_chunk(self, raw: bytes, t0: int, t1: int, index: list[tuple[int, bytes, int]]) -> None:
+        """The Chunk record of ``raw`` and its MessageIndex records (``index``: channel, packed
+        [log_time, offset] pairs, count), written in one call."""
         compressed = self._compress(raw)
         chunk = Chunk(
             compression=self.compression,
@@ -272,18 +301,15 @@ class ChunkedMcapWriter:
         offsets: dict[int, int] = {}
         parts = []
         at = index_start
-        for cid, lst in live:
-            n = len(lst)
-            entries = struct.pack(f"<{n}Q", *lst)
+        for cid, entries, _ in index:
             record = _MSG_INDEX_HEAD.pack(7, 6 + len(entries), cid, len(entries)) + entries
             offsets[cid] = at
             at += len(record)
             parts.append(record)
         self._write(chunk_bytes + b"".join(parts))
-        index_bytes_len = at - index_start
-        for cid, lst in live:
-            self._counts[cid] = self._counts.get(cid, 0) + len(lst) // 2
-            self._message_count += len(lst) // 2
+        for cid, _, n in index:
+            self._counts[cid] = self._counts.get(cid, 0) + n
+            self._message_count += n
         self._chunk_indexes.append(
             ChunkIndex(
                 chunk_length=len(chunk_bytes),
@@ -291,7 +317,7 @@ class ChunkedMcapWriter:
                 compression=self.compression,
                 compressed_size=len(compressed),
                 message_end_time=t1,
-                message_index_length=index_bytes_len,
+                message_index_length=at - index_start,
                 message_index_offsets=offsets,
                 message_start_time=t0,
                 uncompressed_size=len(raw),
@@ -299,9 +325,6 @@ class ChunkedMcapWriter:
         )
         self._t_start = t0 if self._t_start is None else min(self._t_start, t0)
         self._t_end = max(self._t_end, t1)
-        self._chunk.clear()
-        for _, lst in live:
-            lst.clear()
         self._f.flush()
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
@@ -340,6 +363,8 @@ class ChunkedMcapWriter:
         self._chunk.clear()  # after a failed write: what could not be written is lost
         for lst in self._index.values():
             lst.clear()
+        for blocks in self._blocks.values():
+            blocks.clear()
         data_end = _record_bytes(DataEnd(data_section_crc=self._crc))
         summary_start = self._pos + len(data_end)
         summary = bytearray()
