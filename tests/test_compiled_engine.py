@@ -252,3 +252,22 @@ def test_compiled_loop_equals_the_python_loop_on_each_attitude_law(tmp_path, law
     if law != "twisting_smc":
         assert slew["duration_s"] < 150.0  # ended by until_settled
     assert len(msgs["/attitude"]) > 100
+
+
+def test_the_compiled_loop_takes_the_online_inertia_only_when_it_is_constant():
+    """An ``online`` inertia runs compiled as J(q0), J̇ = 0: accepted for symmetric rotors (J(q) does not
+    change with the wheel angles), refused once a rotor's inertia is not symmetric about its axis."""
+    from sms_cli.sim.compiled.runner import unsupported_reason
+
+    loaded = load_mission(ROOT / "tests" / "data" / "compiled_law_backstepping.yaml")
+    sm = compile_system(loaded)
+    spec = loaded.mission.simulation
+    assert spec.attitude.inertia == "online" and unsupported_reason(sm, spec, spec.attitude) is None
+    Y = sm.model.inertias[sm.wheels[0].joint_id]
+    sm.model.inertias[sm.wheels[0].joint_id] = pin.Inertia(Y.mass, Y.lever, np.diag([0.03, 0.05, 0.08]))
+    assert "online inertia varies with the wheel angles" in unsupported_reason(sm, spec, spec.attitude)
+    initial = spec.attitude.model_copy(update={"inertia": "initial"})
+    assert unsupported_reason(sm, spec, initial) is None  # J(q0) is what the law asks for
+    other = load_mission(ROOT / "missions" / "vicariotto_s3a_free_floating.yaml").mission.simulation.attitude
+    assert "'wheels_free_floating' (compiled: mrp_feedback, quaternion_pd, smc, twisting_smc, backstepping)" in \
+        unsupported_reason(sm, spec, other)
