@@ -153,9 +153,11 @@ class _KernelLaw:
             calls.append(KernelCall(f"{att}:sliding_surface", (q, w, w.copy(), self.par.copy(), 0, np.empty(3)), cost=0.2))
         if hasattr(self, "lyapunov"):
             calls.append(KernelCall(f"{att}:backstepping_lyapunov", (q, w, w.copy(), np.eye(3), self.par.copy()), cost=0.2))
-        if isinstance(b, SystemBody):  # the body model's h (plant_models)
+        if not self.needs_body():
+            pass
+        elif isinstance(b, SystemBody):  # the body model's h (plant_models)
             calls.append(KernelCall(f"{att}:system_momentum", (q, w, np.eye(3), w.copy(), np.empty(3)), cost=0.2))
-        elif b is not None and b.Js.size:
+        elif isinstance(b, RigidBody) and b.Js.size:
             calls.append(KernelCall(f"{att}:wheel_momentum", (b.G, b.Js, w, np.zeros(b.Js.size), np.empty(3)), cost=0.2))
         return calls
 
