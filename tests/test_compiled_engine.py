@@ -232,3 +232,41 @@ def test_engine_choice(tmp_path):
     assert "compiled engine cannot run this mission" in exc.value.render() and exc.value.exit_code == 2
     assert "arm" in exc.value.render()
     assert Simulation(sm, loaded.mission.simulation, None, progress=False).compiled_unsupported() is not None
+
+
+@pytest.mark.parametrize("law", ["quaternion_pd", "smc", "twisting_smc", "backstepping"])
+def test_compiled_loop_equals_the_python_loop_on_each_attitude_law(tmp_path, law):
+    """The compiled loop runs the Python loop's law kernels (sms_cli.sim.compiled.attitude_laws) with its
+    own body quantities: the wheels' momentum (a constant inertia tensor, smc), the system's momentum
+    about its CoM from the compiled kinematics against Pinocchio's (quaternion_pd's feedforward,
+    backstepping's disturbance estimate), J(q0) and J̇ = 0 against Pinocchio's online J(q) and its
+    difference quotient (backstepping), the memory of the integral and of the filtered σ̇ across phases.
+    tests/data/compiled_law_*.yaml: slew (ended by settling), coast, thruster phase with a torque limit."""
+    text = (ROOT / "tests" / "data" / f"compiled_law_{law}.yaml").read_text().replace(
+        "extends: ../../missions/", f"extends: {ROOT / 'missions'}/")
+    py, cc, msgs = _compare_runs(tmp_path, lambda e: text.replace("  record_rate: 2 Hz", f"  record_rate: 2 Hz\n  engine: {e}"))
+    slew, coast, thrust = py["phases"]
+    assert slew["attitude_torque_peak_Nm"] > 0.0 and coast["attitude_torque_peak_Nm"] == 0.0
+    assert 0.0 < thrust["attitude_torque_peak_Nm"] <= 0.5  # the thrusters' limit
+    if law != "twisting_smc":
+        assert slew["duration_s"] < 150.0  # ended by until_settled
+    assert len(msgs["/attitude"]) > 100
+
+
+def test_the_compiled_loop_takes_the_online_inertia_only_when_it_is_constant():
+    """An ``online`` inertia runs compiled as J(q0), J̇ = 0: accepted for symmetric rotors (J(q) does not
+    change with the wheel angles), refused once a rotor's inertia is not symmetric about its axis."""
+    from sms_cli.sim.compiled.runner import unsupported_reason
+
+    loaded = load_mission(ROOT / "tests" / "data" / "compiled_law_backstepping.yaml")
+    sm = compile_system(loaded)
+    spec = loaded.mission.simulation
+    assert spec.attitude.inertia == "online" and unsupported_reason(sm, spec, spec.attitude) is None
+    Y = sm.model.inertias[sm.wheels[0].joint_id]
+    sm.model.inertias[sm.wheels[0].joint_id] = pin.Inertia(Y.mass, Y.lever, np.diag([0.03, 0.05, 0.08]))
+    assert "online inertia varies with the wheel angles" in unsupported_reason(sm, spec, spec.attitude)
+    initial = spec.attitude.model_copy(update={"inertia": "initial"})
+    assert unsupported_reason(sm, spec, initial) is None  # J(q0) is what the law asks for
+    other = load_mission(ROOT / "missions" / "vicariotto_s3a_free_floating.yaml").mission.simulation.attitude
+    assert "'wheels_free_floating' (compiled: mrp_feedback, quaternion_pd, smc, twisting_smc, backstepping)" in \
+        unsupported_reason(sm, spec, other)

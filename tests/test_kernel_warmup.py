@@ -71,11 +71,12 @@ SIGNATURES = textwrap.dedent('''
     from sms_cli.sim.stage import planned_simulation
     from sms_cli.model.summary import model_summary
     import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.recording.encoding as B
+    import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A
 
     loaded = load_mission(sys.argv[1])
     sm = compile_system(loaded)
     spec, _ = planned_simulation(sm, loaded)
-    spec = spec.model_copy(update={"phases": spec.phases[:1]})
+    spec = spec.model_copy(update={"phases": spec.phases[:1], **({"engine": sys.argv[4]} if len(sys.argv) > 4 else {})})
     rec = McapRecorder(Path(sys.argv[2]), mission_text=loaded.text, mission_name=loaded.mission.name,
                        model_summary=model_summary(sm), urdf_text=sm.urdf_text, versions={}, record_rate_hz=spec.record_rate)
     links = list(sm.link_parents)
@@ -83,7 +84,7 @@ SIGNATURES = textwrap.dedent('''
     with rec:
         sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
         sim.warm_up()
-        kernels = [getattr(m, n) for m in (D, L, B) for n in dir(m) if hasattr(getattr(m, n), "signatures")]
+        kernels = {getattr(m, n) for m in (D, L, B, C, A) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
         before = {k.py_func.__name__: len(k.signatures) for k in kernels}
         res = sim.run()
         rec.finish(res.status)
@@ -92,16 +93,21 @@ SIGNATURES = textwrap.dedent('''
 ''')
 
 
-@pytest.mark.parametrize("mission, engine", [("basilisk_rw_reference", "compiled"),
-                                             ("astrobee_arm", "python, compiled plant")])
+@pytest.mark.parametrize("mission, engine", [("missions/basilisk_rw_reference", "compiled"),
+                                             ("tests/data/compiled_law_smc", "compiled"),
+                                             ("tests/data/compiled_law_quaternion_pd", "compiled"),
+                                             ("missions/astrobee_arm", "python, compiled plant"),
+                                             ("tests/data/compiled_law_backstepping", "python")])
 def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     """Every kernel the run calls was called by the warm-up with the same argument types: no
-    dispatcher gains a signature during the run (the compiled loop; the Python loop with the
-    compiled plant, joint stops and a recording)."""
+    dispatcher gains a signature during the run (the compiled loop with mrp_feedback, with smc and a
+    rigid body, with quaternion_pd and the SystemModel's body; the Python loop with the compiled
+    plant, joint stops and a recording; the Python loop running an attitude law's kernels, with the
+    SystemModel's online body)."""
     script = tmp_path / "sigs.py"
     script.write_text(SIGNATURES)
-    out = subprocess.run([sys.executable, str(script), str(ROOT / "missions" / f"{mission}.yaml"), str(tmp_path / "r.mcap"),
-                          str(tmp_path)], capture_output=True, text=True, timeout=600, cwd=ROOT)
+    out = subprocess.run([sys.executable, str(script), str(ROOT / f"{mission}.yaml"), str(tmp_path / "r.mcap"),
+                          str(tmp_path), *(["python"] if engine == "python" else [])], capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert out.returncode == 0, out.stderr[-2000:]
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert got["engine"] == engine

@@ -445,3 +445,184 @@ def test_factories_build_every_attitude_law_with_units_and_report_errors():
         ta.validate_python({"law": "quaternion_pd", "kp": "3 m", "kd": 1})
     with pytest.raises(ValidationError, match="exactly one of 'mu'"):
         ta.validate_python({"law": "smc", "k": 0.1, "c": 0.01})
+
+
+# ----------------------------------------------------------------------------- the kernels against the formulas
+# The laws are computed by numba kernels (sms_cli.sim.compiled.attitude_laws), the same in both loops. Here
+# each is evaluated independently from its formula (thesis / class docstring), on random states, gains
+# (scalar, per-axis, 3×3), moving references, wheel momenta and, for the laws with memory, several calls.
+def _oracle_error(qB, qR, w, wR_R, dwR_R):
+    """(q_v, q_w, δω, ω_r = Cᵀω_R, Cᵀω̇_R, q̇_v) of q_e = q_R⁻¹ ⊗ q_B (w ≥ 0), C = R(q_e) base → reference
+    (scipy); the base-frame derivative of ω_r is Cᵀω̇_R − ω × ω_r (the laws' ω̇_r − ω × ω_r)."""
+    from scipy.spatial.transform import Rotation
+
+    conj = np.array([-qR[0], -qR[1], -qR[2], qR[3]])
+    qe = qmul(conj, qB)
+    qe = qe / np.linalg.norm(qe)
+    qe = qe if qe[3] >= 0 else -qe
+    C = Rotation.from_quat(qe).as_matrix()
+    wr = C.T @ wR_R
+    dwr = C.T @ dwR_R
+    dw = w - wr
+    qv, qw = qe[:3], qe[3]
+    return qv, qw, dw, wr, dwr, 0.5 * (qw * dw + np.cross(qv, dw))
+
+
+def _random_gain(rng, kind, lo, hi):
+    if kind == "scalar":
+        return float(rng.uniform(lo, hi))
+    if kind == "axes":
+        return rng.uniform(lo, hi, 3)
+    A = rng.normal(size=(3, 3)) * 0.3 * (hi - lo)
+    return A @ A.T + lo * np.eye(3)
+
+
+def _as_matrix(g):
+    g = np.asarray(g, float)
+    return g if g.ndim == 2 else np.diag(np.broadcast_to(g, (3,)))
+
+
+class _WheelBody(RigidBody):
+    """A rigid body with wheels and a given J̇ (the backstepping's J̇ term)."""
+
+    def __init__(self, J, G, Js, Jd):
+        super().__init__(J, G, Js)
+        self.Jd = Jd
+
+    def inertia_rate(self, s):
+        return self.Jd
+
+
+def _random_case(rng):
+    A = rng.normal(size=(3, 3))
+    J = A @ A.T + 2 * np.eye(3)
+    G = rng.normal(size=(3, 4))
+    G /= np.linalg.norm(G, axis=0)
+    Js = rng.uniform(0.05, 0.2, 4)
+    B = rng.normal(size=(3, 3)) * 0.05
+    return _WheelBody(J, G, Js, B + B.T), G, Js
+
+
+def _calls(rng, n=5):
+    """Random (t, q_B, q_R, ω, ω_R, ω̇_R, Ω) per call; the time steps include a repeated instant."""
+    t = 0.0
+    out = []
+    for k in range(n):
+        qB, qR = qexp(rng.normal(size=3), rng.uniform(0, 3.1)), qexp(rng.normal(size=3), rng.uniform(0, 3.1))
+        moving = k % 2 == 1
+        out.append((t, qB, qR, rng.normal(size=3) * 0.1, rng.normal(size=3) * 0.05 if moving else np.zeros(3),
+                    rng.normal(size=3) * 0.01 if moving else np.zeros(3), rng.normal(size=4) * 50))
+        t += 0.0 if k == 2 else float(rng.uniform(0.05, 0.4))
+    return out
+
+
+def _close(out, ref):
+    assert np.abs(out - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max()), (out, ref)
+
+
+KINDS = ["scalar", "axes", "matrix"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("feedforward", [False, True])
+def test_quaternion_pd_kernel_equals_its_formula(kind, feedforward):
+    """τ = −k_p θ_e − k_d δω − k_i ∫θ_e dt + [ω×(Jω + h) + J(ω̇_r − ω×ω_r)], θ_e = 2 q_v; the integral
+    advanced by θ_e·Δt (Δt = 0 on the first call and at a repeated instant), each component clipped."""
+    rng = np.random.default_rng(21 + KINDS.index(kind) + 5 * feedforward)
+    for trial in range(4):
+        body, G, Js = _random_case(rng)
+        kp, kd, ki = (_random_gain(rng, kind, 0.5, 3.0), _random_gain(rng, kind, 1.0, 6.0),
+                      _random_gain(rng, kind, 0.1, 0.5))
+        lim = 0.05
+        law = QuaternionPD(kp, kd, ki, lim, feedforward, body)
+        integral, prev = np.zeros(3), None
+        for t, qB, qR, w, wR, dwR, Om in _calls(rng):
+            out = law.torque(sensed(t, qB, w, Om), AttitudeRef(qR, wR, dwR))
+            qv, qw, dw, wr, dwr, _ = _oracle_error(qB, qR, w, wR, dwR)
+            theta = 2 * qv
+            dt = 0.0 if prev is None else t - prev
+            prev = t
+            integral = np.clip(integral + theta * dt, -lim, lim)
+            ref = -_as_matrix(kp) @ theta - _as_matrix(kd) @ dw - _as_matrix(ki) @ integral
+            if feedforward:
+                h = G @ (Js * (G.T @ w + Om))
+                ref = ref + np.cross(w, body.J @ w + h) + body.J @ (dwr - np.cross(w, wr))
+            _close(out, ref)
+        assert np.abs(law.integral).max() <= lim and np.allclose(law.integral, integral, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("smoothing, momentum", [("tanh", True), ("sign", True), ("tanh", False)])
+def test_smc_kernel_equals_its_formula(kind, smoothing, momentum):
+    """s = δω + k q_v, τ = ω×(Jω + h) + J(ω̇_r − ω×ω_r − k q̇_v − c tanh(μ s)) (sign(s)); h = 0 without momentum."""
+    rng = np.random.default_rng(41 + KINDS.index(kind) + 3 * (smoothing == "sign") + 7 * momentum)
+    for trial in range(4):
+        body, G, Js = _random_case(rng)
+        k, c, mu = (_random_gain(rng, kind, 0.05, 0.3), _random_gain(rng, kind, 0.005, 0.02),
+                    _random_gain(rng, kind, 5.0, 20.0))
+        law = SlidingModeAttitude(k, c, mu, body, smoothing, momentum)
+        for t, qB, qR, w, wR, dwR, Om in _calls(rng):
+            s, ref_att = sensed(t, qB, w, Om), AttitudeRef(qR, wR, dwR)
+            out = law.torque(s, ref_att)
+            qv, qw, dw, wr, dwr, qvd = _oracle_error(qB, qR, w, wR, dwR)
+            surf = dw + _as_matrix(k) @ qv
+            sw = np.tanh(_as_matrix(mu) @ surf) if smoothing == "tanh" else np.sign(surf)
+            h = G @ (Js * (G.T @ w + Om)) if momentum else np.zeros(3)
+            J = body.J
+            ref = np.cross(w, J @ w + h) + J @ (dwr - np.cross(w, wr) - _as_matrix(k) @ qvd - _as_matrix(c) @ sw)
+            _close(out, ref)
+            _close(law.surface(s, ref_att), surf)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("smoothing, filter_time", [("tanh", 0.0), ("tanh", 0.3), ("sign", 0.2)])
+def test_twisting_kernel_equals_its_formula(kind, smoothing, filter_time):
+    """σ = λ q_v + δω, u = −k₁ tanh(η σ) − k₂ tanh(η σ̇) (sign); σ̇ the backward difference of σ through
+    the filter σ̇ += Δt/(T_f + Δt)·(raw − σ̇), 0 on the first call, kept at a repeated instant."""
+    rng = np.random.default_rng(61 + KINDS.index(kind) + 3 * (smoothing == "sign") + int(10 * filter_time))
+    for trial in range(4):
+        k1, k2, lam, eta = (_random_gain(rng, kind, 0.05, 0.1), _random_gain(rng, kind, 0.01, 0.04),
+                            _random_gain(rng, kind, 0.2, 1.0), _random_gain(rng, kind, 1.0, 20.0))
+        law = TwistingAttitude(k1, k2, lam, eta, smoothing, filter_time)
+        prev_t, prev_sig, sd = None, None, np.zeros(3)
+        for t, qB, qR, w, wR, dwR, Om in _calls(rng):
+            s, ref_att = sensed(t, qB, w, Om), AttitudeRef(qR, wR, dwR)
+            out = law.torque(s, ref_att)
+            qv, qw, dw, wr, dwr, _ = _oracle_error(qB, qR, w, wR, dwR)
+            sig = _as_matrix(lam) @ qv + dw
+            if prev_t is not None and t - prev_t > 0:
+                dt = t - prev_t
+                sd = sd + dt / (filter_time + dt) * ((sig - prev_sig) / dt - sd)
+            prev_t, prev_sig = t, sig
+            sw = (lambda x: np.tanh(_as_matrix(eta) @ x)) if smoothing == "tanh" else np.sign
+            ref = -_as_matrix(k1) @ sw(sig) - _as_matrix(k2) @ sw(sd)
+            _close(out, ref)
+            _close(law.sigma_dot, sd)
+            _close(law.surface(s, ref_att), sig)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("disturbance", ["gyroscopic", "none"])
+def test_backstepping_kernel_equals_its_formula(kind, disturbance):
+    """Ruggiero 2020 (4.15)–(4.27): ω_c = −K₁q_v + ω_r, ω̇_c = −K₁q̇_v + ω̇_r − ω×ω_r, γ = (Jω_c)×ω_c − Jω̇_c − J̇ω_c,
+    u = −K₂ω̃ − q_v − T̂_dis − γ + ω_c×(Jω̃) + ½J̇ω̃, T̂_dis = −ω×h (or 0); V₂ = q_vᵀq_v + (1 − q_w)² + ½ω̃ᵀJω̃."""
+    rng = np.random.default_rng(81 + KINDS.index(kind) + 3 * (disturbance == "none"))
+    for trial in range(4):
+        body, G, Js = _random_case(rng)
+        K1, K2 = _random_gain(rng, kind, 0.2, 1.0), _random_gain(rng, kind, 0.1, 0.5)
+        law = BacksteppingAttitude(K1, K2, body, disturbance)
+        for t, qB, qR, w, wR, dwR, Om in _calls(rng):
+            s, ref_att = sensed(t, qB, w, Om), AttitudeRef(qR, wR, dwR)
+            out = law.torque(s, ref_att)
+            qv, qw, dw, wr, dwr, qvd = _oracle_error(qB, qR, w, wR, dwR)
+            J, Jd = body.J, body.Jd
+            wc = -_as_matrix(K1) @ qv + wr
+            wcd = -_as_matrix(K1) @ qvd + dwr - np.cross(w, wr)
+            wt = w - wc
+            gamma = np.cross(J @ wc, wc) - J @ wcd - Jd @ wc
+            h = G @ (Js * (G.T @ w + Om))
+            T_dis = -np.cross(w, h) if disturbance == "gyroscopic" else np.zeros(3)
+            ref = -_as_matrix(K2) @ wt - qv - T_dis - gamma + np.cross(wc, J @ wt) + 0.5 * Jd @ wt
+            _close(out, ref)
+            V = qv @ qv + (1 - qw) ** 2 + 0.5 * wt @ J @ wt
+            assert law.lyapunov(s, ref_att) == pytest.approx(V, rel=1e-12, abs=1e-15)

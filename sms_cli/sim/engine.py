@@ -343,7 +343,7 @@ class Simulation:
     def warm_up(self) -> None:
         """Load (on a cold cache: compile, in parallel) the kernels the chosen loop calls, from the
         objects that call them (``sms_cli.sim.compiled.kernels``): the compiled loop, or the compiled
-        plant (and its joint-stop kernels), and the recording's."""
+        plant (and its joint-stop kernels) and the attitude law's, and the recording's."""
         from sms_cli.sim.compiled.kernels import kernel_groups
         from sms_cli.sim.compiled.warmup import warm
 
@@ -357,7 +357,7 @@ class Simulation:
         else:
             buffer = getattr(self, "_buffer", None)
             groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
-                                   recording=(buffer.kinematics or False) if buffer is not None else None)
+                                   recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law)
         warm(groups)
 
     # ------------------------------------------------------------------ main loop

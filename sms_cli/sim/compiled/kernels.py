@@ -11,24 +11,28 @@ import numpy as np
 
 from sms_cli.sim.compiled.warmup import KernelCall
 
-# the attitude-law arguments of run_ticks when no law is configured; a configured law's have the same
-# types (CompiledSimulation._law_args)
-NO_LAW = (np.eye(3), np.zeros((3, 0)), np.zeros(0), 0.0, 0.0, -1.0, np.inf, 0, np.zeros(3))
+# the attitude-law arguments of run_ticks when no law is configured (code, parameters, J, G, Js, body
+# code); a configured law's have the same types (CompiledSimulation._law_args)
+NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0)
 
 
-def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None
-                  ) -> list[list[KernelCall]]:
+def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
+                  law=None) -> list[list[KernelCall]]:
     """Groups of kernel calls (``warmup.warm``) of the SystemModel ``sm``'s simulation: the compiled
     loop's on ``loop_tree`` (the 12 arrays of ``SampleKinematics.tree``), else ``plant``'s (a ``CompiledPlant``; ``stops``: with the joint-stop
-    kernels); ``recording``: the ``SampleKinematics`` a recording samples with, False for one recorded
+    kernels) and the Python loop's attitude ``law``'s (its ``warm_calls``, when it has kernels);
+    ``recording``: the ``SampleKinematics`` a recording samples with, False for one recorded
     without compiled kinematics, None for no recording."""
     from sms_cli.recording.encoding import warm_call
 
     groups: list[list[KernelCall]] = []
     if loop_tree is not None:
         groups += [loop_calls(sm, loop_tree), loop_callee_calls(sm, loop_tree)]
-    elif plant is not None:
-        groups += plant.warm_calls(stops=stops)
+    else:
+        if plant is not None:
+            groups += plant.warm_calls(stops=stops)
+        if hasattr(law, "warm_calls"):
+            groups.append(law.warm_calls())
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
     return groups
@@ -68,14 +72,22 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
     q = sm.q0.astype(float).copy()
     w3, w = np.zeros(3), np.zeros(nw)
     ones = np.ones(nw)
-    I, G, Js, K, P, Ki, lim, law_type, L = NO_LAW
-    ctl, dyn = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics"
+    code, par, I, G, Js, _ = NO_LAW
+    qe = np.array([0.0, 0.0, 0.0, 1.0])
+    ctl, dyn, att = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics", "sms_cli.sim.compiled.attitude_laws"
+    # the laws as attitude_law calls them (its callees first), each with the same arguments
+    law_args = (qe, w3, w3, w3.copy(), I, np.zeros((3, 3)), w3.copy(), par, np.zeros(8), 0.0, np.empty(3))
     return [
         KernelCall(f"{dyn}:workspace", (n, sm.nq, sm.nv, 0), cost=1.3),
         KernelCall(f"{ctl}:error_quaternion", (q[3:7], q[3:7].copy(), np.empty(4)), cost=0.2),
         KernelCall(f"{ctl}:error_angle", (q[3:7], q[3:7].copy()), cost=0.2),
-        KernelCall(f"{ctl}:mrp_feedback", (np.array([0.0, 0.0, 0.0, 1.0]), w3, w3, w3.copy(), w, I, G, Js, K, P, Ki, lim,
-                                           law_type, L, np.zeros(4), 0.0, np.empty(3)), cost=0.9),
+        KernelCall(f"{ctl}:mrp_feedback", (qe, w3, w3, w3.copy(), w, I, G, Js, 0.0, 0.0, -1.0, np.inf, 0, np.zeros(3),
+                                           np.zeros(4), 0.0, np.empty(3)), cost=0.9),
+        *(KernelCall(f"{att}:{name}", law_args, cost=0.6) for name in ("quaternion_pd", "smc", "twisting_smc", "backstepping")),
+        KernelCall(f"{att}:attitude_law", (code, qe, w3, w3, w3.copy(), w, I, np.zeros((3, 3)), w3.copy(), G, Js, par,
+                                           np.zeros(8), 0.0, np.empty(3)), cost=0.6),
+        KernelCall(f"{att}:wheel_momentum", (G, Js, w3, w, np.empty(3)), cost=0.2),
+        KernelCall(f"{att}:system_momentum", (q[3:7], np.zeros(10)[3:6], I, w3, np.empty(3)), cost=0.2),
         KernelCall(f"{ctl}:clip_attitude_torque", (np.zeros(3), np.inf), cost=0.1),
         KernelCall(f"{ctl}:allocate_and_clip", (np.zeros(3), w, np.zeros((nw, 3)), np.zeros((nw, nw)), w, 0.0, 0.0, ones,
                                                 np.empty(nw)), cost=0.3),

@@ -1,4 +1,5 @@
-"""The compiled simulation loop for one phase (or a slice of one): sense → mrpFeedback → wheel
+"""The compiled simulation loop for one phase (or a slice of one): sense → attitude law
+(``attitude_laws.attitude_law``: mrp_feedback, quaternion_pd, smc, twisting_smc, backstepping) → wheel
 allocation and limits (ZOH at the control rate) → RKMK4 plant sub-steps, with the per-tick trace
 and the per-step states the recorder samples from.
 
@@ -16,8 +17,9 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled.attitude_laws import attitude_law, system_momentum, wheel_momentum
 from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
-                                          limited_torque, may_reach_limit, mrp_feedback)
+                                          limited_torque, may_reach_limit)
 from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transforms, momenta_energy, relative_poses,
                                            rkmk4_step, workspace, world_placements)
 
@@ -49,8 +51,8 @@ def run_ticks(
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
-    # law (mrpFeedback) and phase
-    law_on, thrusters, torque_limit, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type, L_known, q_ref,
+    # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
+    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, q_ref,
     settle_tol, settle_time,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
@@ -64,12 +66,18 @@ def run_ticks(
     """Advance up to ``n_ticks`` control periods from time t0; returns (ticks, steps, status).
 
     status: RUNNING (all ticks done), SETTLED (the phase's until_settled condition ended it),
-    NON_FINITE or RATE_LIMIT (divergence: the state at the last completed tick is in q, v)."""
+    NON_FINITE or RATE_LIMIT (divergence: the state at the last completed tick is in q, v).
+
+    The law sees step references (ω_r = ω̇_r = 0), the constant inertia J_law with J̇ = 0 and the
+    internal momentum h from the wheels (body_code 0: G_law, Js_law, ``RigidBody``) or from the
+    system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``)."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
     n = parent.shape[0]
     zero3 = np.zeros(3)
+    zero33 = np.zeros((3, 3))
+    h = np.zeros(3)
     T = np.zeros(3)
     qe = np.empty(4)
     omega = np.empty(3)
@@ -98,10 +106,15 @@ def run_ticks(
         T[:] = 0.0
         tau_w[:] = 0.0
         sat = False
+        joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+        momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
         if law_on:
             error_quaternion(q[3:7], q_ref, qe)
-            mrp_feedback(qe, omega, zero3, zero3, ws, I_law, G_law, Js_law, K, P, Ki, integral_limit, law_type,
-                         L_known, law_mem, t, T)
+            if body_code == 1:
+                system_momentum(q[3:7], me[3:6], J_law, omega, h)
+            else:
+                wheel_momentum(G_law, Js_law, omega, ws, h)
+            attitude_law(law_code, qe, omega, zero3, zero3, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
             if thrusters:
                 sat = clip_attitude_torque(T, torque_limit)
             else:
@@ -115,8 +128,6 @@ def run_ticks(
         tr_sat[k] = sat
         for a in range(3):
             tr_bt[k, a] = T[a]
-        joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-        momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
         for a in range(3):
             tr_mom[k, a] = me[a]
             tr_mom[k, 3 + a] = me[6 + a]

@@ -27,7 +27,6 @@ CHUNK_STEPS = 20_000
 def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str | None:
     """Why the compiled engine cannot run this mission (None when it can)."""
     from sms_cli.sim.compiled.tree import unsupported_reason as tree_reason
-    from sms_cli.sim.laws.schema import MrpFeedbackSpec
     from sms_cli.sim.timing import uses_thrusters
 
     checks = [
@@ -36,8 +35,8 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         (bool(sm.arm), "the model has an arm"),
         (spec.ndi is not None or spec.arm is not None or spec.resolved_rate is not None,
          "the mission uses an arm law, NDI or resolved-rate control"),
-        (att_spec is not None and not isinstance(att_spec, MrpFeedbackSpec),
-         f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: mrp_feedback)"),
+        (att_spec is not None and not isinstance(att_spec, _compiled_laws()),
+         f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0) for n in (spec.sensors.gyro, spec.sensors.attitude)),
          "the sensors are noisy"),
         (bool(spec.disturbances), "the mission has disturbances"),
@@ -51,7 +50,40 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     for bad, why in checks:
         if bad:
             return why
-    return tree_reason(sm.model)
+    why = tree_reason(sm.model)
+    if why is None and getattr(att_spec, "inertia", None) == "online" and not _inertia_is_constant(sm):
+        why = "the attitude law's online inertia varies with the wheel angles (rotors not symmetric about their axes)"
+    return why
+
+
+def _compiled_laws():
+    from sms_cli.sim.laws.schema import (BacksteppingSpec, MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec,
+                                         TwistingSpec)
+
+    return (MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec)
+
+
+COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping")
+
+
+def _inertia_is_constant(sm: SystemModel) -> bool:
+    """Whether the locked inertia J(q) of an arm-less rigid model is the same at other wheel angles (the
+    only coordinates it can depend on: base velocities are in the base frame), so that the compiled loop
+    may use J(q0) and J̇ = 0 for an ``online`` inertia: true when every rotor is symmetric about its axis
+    (the declared wheels always are)."""
+    from sms_cli.sim.laws.plant_models import effective_inertia
+
+    import pinocchio as pin
+
+    J0 = effective_inertia(sm, sm.q0)
+    for angle in (0.7, 2.1):
+        turn = np.zeros(sm.nv)
+        for w in sm.wheels:
+            turn[w.v_index] = angle + w.v_index
+        q = pin.integrate(sm.model, sm.q0, turn)
+        if np.abs(effective_inertia(sm, q) - J0).max() > 1e-12 * max(1.0, np.abs(J0).max()):
+            return False
+    return True
 
 
 class CompiledSimulation:
@@ -94,15 +126,24 @@ class CompiledSimulation:
                           wrench=None if wrench is None else wrench[idx])
 
     def _law_args(self):
+        """run_ticks's law arguments: (code, parameters, J, G, Js, body code), from the law object (its
+        ``code``, ``par``) and its body model: a ``RigidBody``'s constant J and wheels (body code 0), a
+        ``SystemBody``'s inertia at q0 (constant on the models the compiled loop runs; ``online``: see
+        ``_inertia_is_constant``) with h from the system's momentum (body code 1), or none."""
+        from sms_cli.sim.compiled.kernels import NO_LAW
+        from sms_cli.sim.laws.plant_models import SystemBody
+
         law = self.law
         if law is None:
-            from sms_cli.sim.compiled.kernels import NO_LAW
-
             return NO_LAW
         b = law.body
-        return (np.ascontiguousarray(b.J, dtype=float), np.ascontiguousarray(b.G, dtype=float),
-                np.ascontiguousarray(b.Js, dtype=float), law.K, law.P, law.Ki, law.integral_limit, law.law_type,
-                np.ascontiguousarray(law.L, dtype=float))
+        _, _, J, G, Js, body_code = NO_LAW
+        if isinstance(b, SystemBody):
+            J, body_code = b.initial_inertia, 1
+        elif b is not None:
+            J, G, Js = b.J, b.G, b.Js
+        f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
+        return int(law.code), f(law.par), f(J), f(G), f(Js), body_code
 
     # ------------------------------------------------------------------ main loop
     def run(self):

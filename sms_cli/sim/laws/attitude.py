@@ -28,11 +28,6 @@ def _cross(a, b) -> np.ndarray:
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
-def _apply(K: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Gain times vector: scalar, per-axis (3,) or full (3×3)."""
-    return K @ x if K.ndim == 2 else K * x
-
-
 def _gain(x) -> np.ndarray:
     return np.asarray(x, dtype=float)
 
@@ -83,58 +78,123 @@ class TrackingError:
         return 2.0 * math.atan2(float(np.linalg.norm(self.qv)), self.qw)
 
 
-class _Clock:
-    """Time between successive calls (first call: 0)."""
-
-    def __init__(self):
-        self.prev: float | None = None
-
-    def dt(self, t: float) -> float:
-        d = 0.0 if self.prev is None else float(t) - self.prev
-        self.prev = float(t)
-        return d
+def _matrix(g: np.ndarray) -> np.ndarray:
+    """A gain as the 3×3 matrix the kernels take: scalar → g I, per-axis (3,) → diag, 3×3 as is."""
+    g = np.asarray(g, dtype=float)
+    if g.ndim == 2:
+        return g
+    return np.diag(np.broadcast_to(g, (3,))).astype(float)
 
 
-def _reference_feedforward(s: Sensed, e: TrackingError, J: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """ω × (J ω + h) + J (ω̇_r − ω × ω_r): cancels the gyroscopic and reference-motion terms."""
-    w = np.asarray(s.omega, dtype=float)
-    return _cross(w, J @ w + h) + J @ (e.domega_r - _cross(w, e.omega_r))
+def _params(*parts) -> np.ndarray:
+    """A law's flat parameter array (``sms_cli.sim.compiled.attitude_laws``): 3×3 gains row-major, then scalars."""
+    return np.ascontiguousarray(np.concatenate([np.ravel(_matrix(p)) if isinstance(p, np.ndarray) else [float(p)]
+                                                for p in parts]), dtype=float)
 
 
-class QuaternionPD:
+def _f64(x) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
+
+
+_ZERO33 = np.zeros((3, 3))
+_EYE3 = np.eye(3)
+
+
+class _KernelLaw:
+    """A law computed by its kernel in ``sms_cli.sim.compiled.attitude_laws`` (``kernel``, ``code``):
+    parameters ``par``, state ``memory`` (zeroed by ``reset``) and the body model ``body`` (None: the
+    law uses no body quantity). ``needs_body``: whether the torque uses J, J̇ and h this time."""
+
+    kernel = ""
+    code = -1
+    memory_size = 1
+    uses_inertia_rate = False
+    body = None
+    par: np.ndarray
+
+    def reset(self) -> None:
+        self.memory = np.zeros(self.memory_size)
+
+    def needs_body(self) -> bool:
+        return self.body is not None
+
+    def _kernel(self):
+        from sms_cli.sim.compiled import attitude_laws
+
+        return getattr(attitude_laws, self.kernel)
+
+    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        e = TrackingError(s, ref)
+        J, Jd, h = _EYE3, _ZERO33, _ZERO3
+        if self.needs_body():
+            b = self.body
+            J = _f64(b.inertia(s))
+            h = _f64(b.internal_momentum(s))
+            if self.uses_inertia_rate:
+                Jd = _f64(b.inertia_rate(s))
+        out = np.empty(3)
+        self._kernel()(e.q, _f64(s.omega), _f64(e.omega_r), _f64(e.domega_r), J, Jd, h, self.par, self.memory,
+                       float(s.t), out)
+        return out
+
+    def warm_calls(self) -> list:
+        """This law's kernel calls with the argument types of ``torque`` (``sms_cli.sim.compiled.warmup``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        from sms_cli.sim.laws.plant_models import SystemBody
+
+        q, w = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)
+        ctl, att = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.attitude_laws"
+        calls = [KernelCall(f"{ctl}:error_quaternion", (q, q.copy(), np.empty(4)), cost=0.2),
+                 KernelCall(f"{att}:{self.kernel}", (q, w, w.copy(), w.copy(), np.eye(3), np.zeros((3, 3)), w.copy(),
+                                                     self.par.copy(), np.zeros(self.memory_size), 0.0, np.empty(3)), cost=0.6)]
+        b = self.body
+        if hasattr(self, "surface"):
+            calls.append(KernelCall(f"{att}:sliding_surface", (q, w, w.copy(), self.par.copy(), 0, np.empty(3)), cost=0.2))
+        if hasattr(self, "lyapunov"):
+            calls.append(KernelCall(f"{att}:backstepping_lyapunov", (q, w, w.copy(), np.eye(3), self.par.copy()), cost=0.2))
+        if not self.needs_body():
+            pass
+        elif isinstance(b, SystemBody):  # the body model's h (plant_models)
+            calls.append(KernelCall(f"{att}:system_momentum", (q, w, np.eye(3), w.copy(), np.empty(3)), cost=0.2))
+        elif isinstance(b, RigidBody) and b.Js.size:
+            calls.append(KernelCall(f"{att}:wheel_momentum", (b.G, b.Js, w, np.zeros(b.Js.size), np.empty(3)), cost=0.2))
+        return calls
+
+
+class QuaternionPD(_KernelLaw):
     """τ = −k_p θ_e − k_d δω − k_i ∫θ_e dt [+ ω×(Jω + h) + J(ω̇_r − ω×ω_r)].
 
     θ_e = 2 q_v (rad; the rotation vector for small errors), so on a rigid axis of inertia I the
     small-angle loop is I θ̈ + k_d θ̇ + k_p θ = 0: ω_n = √(k_p/I), ζ = k_d/(2√(k_p I)).
     k_p in N m/rad, k_d in N m s/rad, k_i in N m/(rad s); scalar, per-axis (3,) or 3×3.
     ``integral_limit`` (rad s) clips each component of ∫θ_e. ``feedforward`` needs a body model.
+    The integral advances by θ_e × (time since the previous call; 0 on the first).
+    Computed by ``sms_cli.sim.compiled.attitude_laws.quaternion_pd``.
     """
 
+    kernel, memory_size = "quaternion_pd", 5
+
     def __init__(self, kp, kd, ki=0.0, integral_limit: float = math.inf, feedforward: bool = False, body=None):
+        from sms_cli.sim.compiled.attitude_laws import QUATERNION_PD
+
+        self.code = QUATERNION_PD
         self.kp, self.kd, self.ki = _gain(kp), _gain(kd), _gain(ki)
         self.integral_limit = float(integral_limit)
         self.feedforward = feedforward
         if feedforward and body is None:
             raise ValueError("QuaternionPD: feedforward needs a body model (inertia)")
         self.body = body
+        self.par = _params(self.kp, self.kd, self.ki, self.integral_limit, float(feedforward))
         self.reset()
 
-    def reset(self) -> None:
-        self._clock = _Clock()
-        self.integral = np.zeros(3)
+    def needs_body(self) -> bool:
+        return self.feedforward
 
-    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
-        e = TrackingError(s, ref)
-        theta = 2.0 * e.qv
-        dt = self._clock.dt(s.t)
-        tau = -_apply(self.kp, theta) - _apply(self.kd, e.dw)
-        if np.any(self.ki != 0):
-            self.integral = np.clip(self.integral + theta * dt, -self.integral_limit, self.integral_limit)
-            tau -= _apply(self.ki, self.integral)
-        if self.feedforward:
-            J = self.body.inertia(s)
-            tau += _reference_feedforward(s, e, J, self.body.internal_momentum(s))
-        return tau
+    @property
+    def integral(self) -> np.ndarray:
+        """∫θ_e dt (rad s), as clipped."""
+        return self.memory[2:5]
 
 
 class MrpFeedback:
@@ -163,6 +223,25 @@ class MrpFeedback:
         self.L = np.asarray(known_torque, dtype=float)
         self.reset()
 
+    code = 0  # attitude_laws.MRP_FEEDBACK
+
+    @property
+    def par(self) -> np.ndarray:
+        """[K, P, Ki, integral_limit, control_law_type, L (3)]: the compiled loop's parameters
+        (``attitude_laws.attitude_law``)."""
+        return np.array([self.K, self.P, self.Ki, self.integral_limit, float(self.law_type), *self.L], dtype=float)
+
+    def warm_calls(self) -> list:
+        """This law's kernel calls with the argument types of ``torque`` (``sms_cli.sim.compiled.warmup``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        q, w, b = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), self.body
+        ctl = "sms_cli.sim.compiled.control"
+        return [KernelCall(f"{ctl}:error_quaternion", (q, q.copy(), np.empty(4)), cost=0.2),
+                KernelCall(f"{ctl}:mrp_feedback", (q, w, w.copy(), w.copy(), np.zeros(b.Js.size), b.J, b.G, b.Js, self.K,
+                                                   self.P, self.Ki, self.integral_limit, self.law_type, self.L,
+                                                   np.zeros(4), 0.0, np.empty(3)), cost=0.9)]
+
     def reset(self) -> None:
         self.memory = np.zeros(4)  # [prior_time, K∫σ dt (3)], as the compiled law keeps it
 
@@ -182,7 +261,7 @@ class MrpFeedback:
         return out
 
 
-class SlidingModeAttitude:
+class SlidingModeAttitude(_KernelLaw):
     """First-order SMC of Caldera 2019 ((3.9)–(3.17)) with self-consistent signs.
 
     Surface s = δω + k q_v (the seed's s_s = ω_e + k q_e with q_e = q⁻¹ ∘ q_r, ω_e = ω_r − ω is
@@ -195,33 +274,32 @@ class SlidingModeAttitude:
     obeys q̇_v = −½ k q_w q_v (rate ≈ k/2 for small errors).
     k (1/s), c (rad/s², multiplies J), μ (s/rad); ``smoothing='sign'`` gives the ideal law.
     ``momentum=False`` leaves h out (the seed's ω × I_s ω only).
+    Computed by ``sms_cli.sim.compiled.attitude_laws.smc``.
     """
 
+    kernel = "smc"
+
     def __init__(self, k, c, mu, body, smoothing: str = "tanh", momentum: bool = True):
+        from sms_cli.sim.compiled.attitude_laws import SMC
+
+        self.code = SMC
         self.k, self.c, self.mu = _gain(k), _gain(c), _gain(mu)
         self.smoothing = check_smoothing(smoothing)
         self.body = body
         self.momentum = momentum
-
-    def reset(self) -> None:
-        pass
+        self.par = _params(self.k, self.c, self.mu, float(smoothing == "sign"), float(momentum))
+        self.reset()
 
     def surface(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        from sms_cli.sim.compiled.attitude_laws import SMC_K, sliding_surface
+
         e = TrackingError(s, ref)
-        return e.dw + _apply(self.k, e.qv)
-
-    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
-        e = TrackingError(s, ref)
-        sig = e.dw + _apply(self.k, e.qv)
-        sw = np.tanh(_apply(self.mu, sig)) if self.smoothing == "tanh" else np.sign(sig)
-        J = self.body.inertia(s)
-        h = self.body.internal_momentum(s) if self.momentum else np.zeros(3)
-        w = np.asarray(s.omega, dtype=float)
-        acc = e.domega_r - _cross(w, e.omega_r) - _apply(self.k, e.qv_dot()) - _apply(self.c, sw)
-        return _cross(w, J @ w + h) + J @ acc
+        out = np.empty(3)
+        sliding_surface(e.q, _f64(s.omega), _f64(e.omega_r), self.par, SMC_K, out)
+        return out
 
 
-class TwistingAttitude:
+class TwistingAttitude(_KernelLaw):
     """Twisting SMC of Ruggiero 2020 ((4.5)–(4.8), L538, (5.2)):
 
         σ = λ q_v + δω,   u = −k₁ tanh(η σ) − k₂ tanh(η σ̇)   (or sign)
@@ -230,39 +308,41 @@ class TwistingAttitude:
     (0 on the first call), optionally through a first-order filter of time constant
     ``filter_time`` (s). |u_i| ≤ k₁ᵢ + k₂ᵢ always. k₁, k₂ (N m), λ (1/s), η (dimensionless).
     For σ̇ = a + J⁻¹u with |a| ≤ A, each σ_i reaches 0 within |σ_i(0)| / ((k₁−k₂)/J_ii − A)
-    (ideal sign law, k₁ > k₂).
+    (ideal sign law, k₁ > k₂). Computed by ``sms_cli.sim.compiled.attitude_laws.twisting_smc``.
     """
 
+    kernel, memory_size = "twisting_smc", 8
+
     def __init__(self, k1, k2, lam, eta=1.0, smoothing: str = "tanh", filter_time: float = 0.0):
+        from sms_cli.sim.compiled.attitude_laws import TWISTING_SMC
+
+        self.code = TWISTING_SMC
         self.k1, self.k2, self.lam, self.eta = _gain(k1), _gain(k2), _gain(lam), _gain(eta)
         self.smoothing = check_smoothing(smoothing)
         self.filter_time = float(filter_time)
+        self.par = _params(self.k1, self.k2, self.lam, self.eta, float(smoothing == "sign"), self.filter_time)
         self.reset()
 
-    def reset(self) -> None:
-        self._clock = _Clock()
-        self.prev_sigma: np.ndarray | None = None
-        self.sigma_dot = np.zeros(3)
+    @property
+    def prev_sigma(self) -> np.ndarray | None:
+        """σ at the previous call (None before the first)."""
+        return self.memory[2:5] if self.memory[0] else None
 
-    def _sw(self, x: np.ndarray) -> np.ndarray:
-        return np.tanh(_apply(self.eta, x)) if self.smoothing == "tanh" else np.sign(x)
+    @property
+    def sigma_dot(self) -> np.ndarray:
+        """The (filtered) numerical σ̇ of the last call."""
+        return self.memory[5:8]
 
     def surface(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
+        from sms_cli.sim.compiled.attitude_laws import TW_LAM, sliding_surface
+
         e = TrackingError(s, ref)
-        return _apply(self.lam, e.qv) + e.dw
-
-    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
-        sig = self.surface(s, ref)
-        dt = self._clock.dt(s.t)
-        if self.prev_sigma is not None and dt > 0:
-            raw = (sig - self.prev_sigma) / dt
-            a = dt / (self.filter_time + dt)
-            self.sigma_dot = self.sigma_dot + a * (raw - self.sigma_dot)
-        self.prev_sigma = sig
-        return -_apply(self.k1, self._sw(sig)) - _apply(self.k2, self._sw(self.sigma_dot))
+        out = np.empty(3)
+        sliding_surface(e.q, _f64(s.omega), _f64(e.omega_r), self.par, TW_LAM, out)
+        return out
 
 
-class BacksteppingAttitude:
+class BacksteppingAttitude(_KernelLaw):
     """Backstepping of Ruggiero 2020 ((4.15)–(4.28)), with ω̃ = ω − ω_c:
 
         ω_c = −K₁ q_v + ω_r,   γ = (J ω_c) × ω_c − J ω̇_c − J̇ ω_c,
@@ -272,35 +352,26 @@ class BacksteppingAttitude:
     V₂ = q_vᵀq_v + (1 − q_w)² + ½ ω̃ᵀ J ω̃ has V̇₂ = −q_vᵀK₁q_v − ω̃ᵀK₂ω̃ (4.28).
     T̂_dis = −ω × h (``disturbance='gyroscopic'``, h from the body model) or 0 (``'none'``).
     K₁ (1/s), K₂ (N m s/rad); scalar, per-axis or 3×3 (symmetric positive definite).
+    Computed by ``sms_cli.sim.compiled.attitude_laws.backstepping``.
     """
 
+    kernel, uses_inertia_rate = "backstepping", True
+
     def __init__(self, K1, K2, body, disturbance: str = "gyroscopic"):
+        from sms_cli.sim.compiled.attitude_laws import BACKSTEPPING
+
+        self.code = BACKSTEPPING
         self.K1, self.K2 = _gain(K1), _gain(K2)
         if disturbance not in ("gyroscopic", "none"):
             raise ValueError("disturbance is 'gyroscopic' or 'none'")
         self.disturbance = disturbance
         self.body = body
-
-    def reset(self) -> None:
-        pass
-
-    def _parts(self, s: Sensed, ref: AttitudeRef):
-        e = TrackingError(s, ref)
-        w = np.asarray(s.omega, dtype=float)
-        wc = -_apply(self.K1, e.qv) + e.omega_r
-        return e, w, wc, w - wc
+        self.par = _params(self.K1, self.K2, float(disturbance == "gyroscopic"))
+        self.reset()
 
     def lyapunov(self, s: Sensed, ref: AttitudeRef) -> float:
         """V₂ = q_vᵀq_v + (1 − q_w)² + ½ ω̃ᵀ J ω̃."""
-        e, _, _, wt = self._parts(s, ref)
-        J = self.body.inertia(s)
-        return float(e.qv @ e.qv + (1.0 - e.qw) ** 2 + 0.5 * wt @ J @ wt)
+        from sms_cli.sim.compiled.attitude_laws import backstepping_lyapunov
 
-    def torque(self, s: Sensed, ref: AttitudeRef) -> np.ndarray:
-        e, w, wc, wt = self._parts(s, ref)
-        J = self.body.inertia(s)
-        Jd = self.body.inertia_rate(s)
-        wc_dot = -_apply(self.K1, e.qv_dot()) + e.domega_r - _cross(w, e.omega_r)
-        gamma = _cross(J @ wc, wc) - J @ wc_dot - Jd @ wc
-        T_dis = -_cross(w, self.body.internal_momentum(s)) if self.disturbance == "gyroscopic" else np.zeros(3)
-        return -_apply(self.K2, wt) - e.qv - T_dis - gamma + _cross(wc, J @ wt) + 0.5 * Jd @ wt
+        e = TrackingError(s, ref)
+        return float(backstepping_lyapunov(e.q, _f64(s.omega), _f64(e.omega_r), _f64(self.body.inertia(s)), self.par))

@@ -56,8 +56,8 @@ class RigidBody:
     def __init__(self, inertia, wheel_axes=None, wheel_spin=None):
         J = np.asarray(inertia, dtype=float)
         self.J = np.diag(J) if J.ndim == 1 else J
-        self.G = np.zeros((3, 0)) if wheel_axes is None else np.asarray(wheel_axes, dtype=float).reshape(3, -1)
-        self.Js = np.zeros(self.G.shape[1]) if wheel_spin is None else np.asarray(wheel_spin, dtype=float)
+        self.G = np.zeros((3, 0)) if wheel_axes is None else np.ascontiguousarray(np.reshape(wheel_axes, (3, -1)), dtype=float)
+        self.Js = np.zeros(self.G.shape[1]) if wheel_spin is None else np.ascontiguousarray(wheel_spin, dtype=float)
 
     def inertia(self, s: Sensed) -> np.ndarray:
         return self.J
@@ -66,10 +66,15 @@ class RigidBody:
         return np.zeros((3, 3))
 
     def internal_momentum(self, s: Sensed) -> np.ndarray:
-        """Σ ĝ_i J_s,i (ĝ_iᵀ ω + Ω_i): wheel momentum, base frame (N m s)."""
-        if not self.Js.size:
-            return np.zeros(3)
-        return self.G @ (self.Js * (self.G.T @ s.omega + np.asarray(s.wheel_speed, dtype=float)))
+        """Σ ĝ_i J_s,i (ĝ_iᵀ ω + Ω_i): wheel momentum, base frame (N m s); the compiled loop's kernel
+        (``sms_cli.sim.compiled.attitude_laws.wheel_momentum``)."""
+        from sms_cli.sim.compiled.attitude_laws import wheel_momentum
+
+        out = np.zeros(3)
+        if self.Js.size:
+            wheel_momentum(self.G, self.Js, np.ascontiguousarray(s.omega, dtype=float),
+                           np.ascontiguousarray(s.wheel_speed, dtype=float), out)
+        return out
 
 
 class SystemBody:
@@ -89,6 +94,11 @@ class SystemBody:
             self._key = key
             self._J = effective_inertia(self.sm, s.q) if self.online else self._J0
 
+    @property
+    def initial_inertia(self) -> np.ndarray:
+        """J at the initial configuration q0 (the ``initial`` inertia)."""
+        return self._J0
+
     def inertia(self, s: Sensed) -> np.ndarray:
         self._update(s)
         return self._J
@@ -103,10 +113,15 @@ class SystemBody:
         return (effective_inertia(self.sm, qp) - effective_inertia(self.sm, qm)) / (2.0 * self.h)
 
     def internal_momentum(self, s: Sensed) -> np.ndarray:
-        """h = Rᵀ k_G − J ω (base frame, N m s): wheels and arm motion relative to the locked body."""
+        """h = Rᵀ k_G − J ω (base frame, N m s): wheels and arm motion relative to the locked body; k_G
+        by Pinocchio, the rest by the compiled loop's kernel (``attitude_laws.system_momentum``)."""
+        from sms_cli.sim.compiled.attitude_laws import system_momentum
+
         hg = pin.computeCentroidalMomentum(self.sm.model, self.sm.data, s.q, s.v)
-        R = base_rotation(s.q[3:7])
-        return R.T @ hg.angular - self.inertia(s) @ s.omega
+        out = np.empty(3)
+        system_momentum(np.ascontiguousarray(s.q[3:7], dtype=float), np.ascontiguousarray(hg.angular, dtype=float),
+                        np.ascontiguousarray(self.inertia(s), dtype=float), np.ascontiguousarray(s.omega, dtype=float), out)
+        return out
 
 
 ARM_MODELS = ("free_floating", "attitude_held", "fixed_base")
