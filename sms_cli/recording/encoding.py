@@ -131,6 +131,29 @@ class Templates:
                 params.append(param)
             starts.append(len(lits))
         joined = b"".join(lits)
+        # A template without STAMP/LENGTH has the same bytes at the same places in every sample:
+        # its payload is a gather from [literals | the sample's value bytes] (one index per byte).
+        n_lit = len(joined)
+        gidx: list[int] = []
+        gstart, glen, vstart = [], [], []
+        lit_at, value_byte = 0, 0
+        for tpl in templates:
+            vstart.append(value_byte)
+            fixed = all(code in (NONE, DOUBLE) for _, code, _ in tpl.pieces)
+            gstart.append(len(gidx) if fixed else -1)
+            first = len(gidx)
+            for lit, code, _ in tpl.pieces:
+                if fixed:
+                    gidx.extend(range(lit_at, lit_at + len(lit)))
+                    if code == DOUBLE:
+                        gidx.extend(range(n_lit + value_byte, n_lit + value_byte + 8))
+                lit_at += len(lit)
+                value_byte += 8 if code == DOUBLE else 0
+            glen.append(len(gidx) - first)
+        self.gidx = np.array(gidx, dtype=np.int64)
+        self.gstart = np.array(gstart, dtype=np.int64)
+        self.glen = np.array(glen, dtype=np.int64)
+        self.vstart = np.array(vstart, dtype=np.int64)
         self.lit = np.frombuffer(joined, dtype=np.uint8).copy() if joined else np.zeros(1, np.uint8)
         self.lit_len = np.array([len(x) for x in lits], dtype=np.int64)
         self.lit_start = np.concatenate([[0], np.cumsum(self.lit_len)[:-1]]).astype(np.int64)
@@ -156,8 +179,8 @@ class Templates:
         out = np.empty(self.capacity(n), dtype=np.uint8)
         offsets = np.empty(n * self.n_messages, dtype=np.int64)
         raw = values.view(np.uint8).reshape(n, 8 * self.n_values)
-        end = encode_records(self.lit, self.lit_start, self.lit_len, self.code, self.param, self.piece_start, raw,
-                             channels, seq0, ts, out, offsets)
+        end = encode_records(self.lit, self.lit_start, self.lit_len, self.code, self.param, self.piece_start,
+                             self.gidx, self.gstart, self.glen, self.vstart, raw, channels, seq0, ts, out, offsets)
         return out, end, offsets
 
 
@@ -188,20 +211,29 @@ def _varint_size(value):
 
 
 @njit(**_JIT)
-def encode_records(lit, lit_start, lit_len, code, param, piece_start, raw, channels, seq0, ts, out, offsets):
+def encode_records(lit, lit_start, lit_len, code, param, piece_start, gidx, gstart, glen, vstart, raw, channels, seq0,
+                   ts, out, offsets):
     """Framed Message records for every sample (row of ``raw``, the values' bytes, and of ``ts``)
     and template; returns the bytes written. ``offsets[s · m + j]`` = start of sample s's message j;
-    ``channels[j]`` its channel; sequence = seq0 + s (mod 2³²); log time = publish time = ts[s]."""
+    ``channels[j]`` its channel; sequence = seq0 + s (mod 2³²); log time = publish time = ts[s].
+    Template j is a gather ``gidx[gstart[j]:gstart[j] + glen[j]]`` from [lit | row bytes] when
+    ``gstart[j] ≥ 0``, else its pieces, whose values start at byte ``vstart[j]`` of the row."""
     m = piece_start.shape[0] - 1
+    n_lit = lit.shape[0]
+    row = raw.shape[1]
+    src = np.empty(n_lit + row, dtype=np.uint8)
+    for b in range(n_lit):
+        src[b] = lit[b]
     pos = 0
     for s in range(raw.shape[0]):
+        for b in range(row):
+            src[n_lit + b] = raw[s, b]
         t = ts[s]
         sec = t // 1000000000
         nsec = t - sec * 1000000000
         stamp_body = 2 + _varint_size(sec) + _varint_size(nsec)  # keys 0x08, 0x10 and the two varints
         stamp_size = 1 + stamp_body  # with its length varint (< 128)
         seq = (seq0 + s) & 0xFFFFFFFF
-        vb = 0
         for j in range(m):
             start = pos
             offsets[s * m + j] = start
@@ -210,6 +242,14 @@ def encode_records(lit, lit_start, lit_len, code, param, piece_start, raw, chann
             pos = _write_uint(out, pos, seq, 4)
             pos = _write_uint(out, pos, t, 8)
             pos = _write_uint(out, pos, t, 8)
+            g0 = gstart[j]
+            if g0 >= 0:
+                for b in range(glen[j]):
+                    out[pos + b] = src[gidx[g0 + b]]
+                pos += glen[j]
+                _write_uint(out, start + 1, pos - start - 9, 8)
+                continue
+            vb = vstart[j]
             for k in range(piece_start[j], piece_start[j + 1]):
                 a = lit_start[k]
                 for b in range(lit_len[k]):
@@ -241,6 +281,7 @@ def warm_call():
     tpl = Templates([frame_transform(Template(), 1, "world", "base").done()])
     raw = np.zeros((1, tpl.n_values)).view(np.uint8).reshape(1, -1)
     return KernelCall("sms_cli.recording.encoding:encode_records",
-                      (tpl.lit, tpl.lit_start, tpl.lit_len, tpl.code, tpl.param, tpl.piece_start, raw,
+                      (tpl.lit, tpl.lit_start, tpl.lit_len, tpl.code, tpl.param, tpl.piece_start, tpl.gidx, tpl.gstart,
+                       tpl.glen, tpl.vstart, raw,
                        np.zeros(1, dtype=np.int64), 0, np.zeros(1, dtype=np.int64), np.empty(tpl.capacity(1), np.uint8),
                        np.empty(1, dtype=np.int64)), cost=1.0)
