@@ -439,7 +439,7 @@ def main(argv=None) -> int:
             print(f"Python engine / Basilisk: {py_t['us_per_step_record'] / bsk['us_per_step_execute']:.1f}x recording on "
                   f"(CPU {py_t['cpu_us_per_step_record'] / bsk['cpu_us_per_step_execute']:.1f}x)")
             print(f"history differences over {cmp_['samples']} common steps (max abs; sms read back from its MCAP, "
-                  "which keeps 12 significant digits):")
+                  "which holds the doubles exactly):")
             print(f"  sigma_BN (MRP)   {cmp_['sigma']:.3e}      attitude angle {cmp_['angle_rad']:.3e} rad")
             print(f"  omega_BN (body)  {cmp_['omega_rad_s']:.3e} rad/s")
             print(f"  wheel speeds     {cmp_['wheel_speed_rad_s']:.3e} rad/s ({cmp_['wheel_speed_rel']:.1e} of the peak)")
