@@ -451,7 +451,9 @@ class McapRecorder:
             if ts == self._last_ts:
                 return False  # already recorded at this time (e.g. a forced final sample)
             raise ValueError(f"recorder: time went backwards: t = {t!r} s after a sample at {self._last_ts / 1e9!r} s")
-        block_tf = None
+        if self._w is None:
+            self._ensure_open()
+        poses = None
         if transforms is not None:
             if self._links is None:
                 raise ValueError("recorder: transforms given but add_transform_tree was not called")
@@ -459,15 +461,12 @@ class McapRecorder:
             n = len(self._links)
             if world.shape != (n, 7):
                 raise ValueError(f"recorder: transforms must have shape ({n}, 7) (one [x y z qx qy qz qw] row per link), got {world.shape}")
-            block_tf = world[None]
-        block_scalars = None
+            poses = (world if self._tf_rel is None else self._tf_rel(world)).reshape(1, -1)
+        plan = values = None
         if scalars:
-            block_scalars = {}
-            for topic, fields in scalars.items():
-                if not isinstance(fields, Mapping):
-                    raise ValueError(f"recorder: scalars[{topic!r}] must be a non-empty dict of field → value")
-                block_scalars[topic] = {name: np.asarray(value)[None] for name, value in fields.items()}
-        self._write_samples(np.array([float(t)]), np.array([ts], dtype=np.int64), block_tf, block_scalars, False)
+            plan = self._plan_of(scalars)
+            values = self._sample_values(plan, scalars)
+        self._write_samples(np.array([float(t)]), np.array([ts], dtype=np.int64), poses, plan, values)
         return True
 
     def _next_due(self, t: float, t0: float) -> float:
@@ -520,40 +519,54 @@ class McapRecorder:
             raise ValueError("recorder: block times must be finite, ≥ 0 and strictly increasing")
         if ts[0] <= self._last_ts:
             raise ValueError(f"recorder: time went backwards: block from {times[0]!r} s after a sample at {self._last_ts / 1e9!r} s")
-        self._write_samples(times, ts, transforms, scalars, relative)
-
-    def _write_samples(self, times: np.ndarray, ts: np.ndarray, transforms, scalars, relative: bool) -> None:
-        """Encode and append n samples (times checked by the caller): /tf, then the numeric topics."""
-        n = times.size
         if self._w is None:
             self._ensure_open()
-        columns = []  # one row of numbers per sample, in template order
-        templates = []
-        channels = []
-        if transforms is not None:
-            columns.append(self._block_poses(transforms, n, relative).reshape(n, -1))
-            templates.append(self._tf_template)
-            channels.append(self._tf_channel)
-        plan = None
+        n = times.size
+        poses = None if transforms is None else self._block_poses(transforms, n, relative).reshape(n, -1)
+        plan = values = None
         if scalars:
+            first = {topic: ({name: np.asarray(val)[0] if np.ndim(val) else val for name, val in fields.items()}
+                             if isinstance(fields, Mapping) else fields) for topic, fields in scalars.items()}
+            plan = self._plan_of(first)
+            values = self._block_values(plan, scalars, n)
+        self._write_samples(times, ts, poses, plan, values)
+
+    def _plan_of(self, scalars) -> _ScalarPlan:
+        """The plan of a set of topics (``scalars``: one sample's or a block's values; built, and
+        the new topics registered, at its first use)."""
+        plan = self._plans.get(tuple(scalars))
+        if plan is None:
             first = {}
             for topic, fields in scalars.items():
                 if not isinstance(fields, Mapping):
                     raise ValueError(f"recorder: scalars[{topic!r}] must be a non-empty dict of field → value")
-                first[topic] = {name: np.asarray(val)[0] if np.ndim(val) else val for name, val in fields.items()}
-            plan = self._plans.get(tuple(first))
-            if plan is None:
-                self._busy = True
-                try:
-                    plan = self._plan(first)
-                finally:
-                    self._end_busy()
-            columns.append(self._block_values(plan, scalars, n))
+                first[topic] = fields
+            self._busy = True
+            try:
+                plan = self._plan(first)
+            finally:
+                self._end_busy()
+        return plan
+
+    def _write_samples(self, times: np.ndarray, ts: np.ndarray, poses: np.ndarray | None, plan: _ScalarPlan | None,
+                       values: np.ndarray | None) -> None:
+        """Encode and append n samples (times checked by the caller): /tf from ``poses`` (n, 7 ·
+        n_links) parent-relative, then the plan's numeric topics from ``values`` (n, plan values)."""
+        n = times.size
+        columns = []  # one row of numbers per sample, in template order
+        templates = []
+        channels = []
+        if poses is not None:
+            columns.append(poses)
+            templates.append(self._tf_template)
+            channels.append(self._tf_channel)
+        if plan is not None:
+            columns.append(values)
             templates += plan.templates
             channels += plan.channels
         if not templates:
             return
-        key = (transforms is not None, tuple(plan.topics) if plan is not None else ())
+        key = (poses is not None, tuple(plan.topics) if plan is not None else ())
         tpl = self._block_templates.get(key)
         if tpl is None:
             tpl = self._block_templates[key] = (Templates(templates), np.array(channels, dtype=np.int64))
@@ -593,8 +606,13 @@ class McapRecorder:
             buf += out[offsets[i]:rec_end[j - 1]].data
             starts = (offsets[i:j] + base).reshape(-1, m)
             stamps = ts[i // m:j // m]
-            for k, cid in enumerate(cids):
-                w.add_index_block(cid, stamps, starts[:, k])
+            if stamps.size == 1:  # one sample (write_step): Python ints are cheaper than arrays
+                t = int(stamps[0])
+                for cid, start in zip(cids, starts[0].tolist()):
+                    w.channel_index(cid).extend((t, start))
+            else:
+                for k, cid in enumerate(cids):
+                    w.add_index_block(cid, stamps, starts[:, k])
             if len(buf) >= w.chunk_size:
                 w.flush_chunk()
             i = j
@@ -617,6 +635,28 @@ class McapRecorder:
         out = np.empty((n * nl, 7))
         relative_poses(np.ascontiguousarray(world.reshape(n * nl, 7)), tiled.ravel(), out)
         return out.reshape(n, nl, 7)
+
+    def _sample_values(self, plan: _ScalarPlan, scalars) -> np.ndarray:
+        """One sample's numeric values (1, n_values) in the plan's order (``write_step``)."""
+        vals: list = []
+        try:
+            for topic, spec in plan.rows:
+                fields = scalars[topic]
+                if len(fields) != len(spec):
+                    raise KeyError
+                for name, k in spec:
+                    v = fields[name]
+                    if k:
+                        lst = v.tolist() if isinstance(v, np.ndarray) else list(v)
+                        if len(lst) != k:
+                            raise KeyError
+                        vals.extend(lst)
+                    else:
+                        vals.append(v)
+            return np.array(vals, dtype=float).reshape(1, -1)
+        except (KeyError, TypeError, ValueError):
+            return self._block_values(plan, {t: {f: np.asarray(v)[None] for f, v in fields.items()} if isinstance(fields, Mapping)
+                                             else fields for t, fields in scalars.items()}, 1)  # says what is wrong
 
     def _block_values(self, plan: _ScalarPlan, scalars, n: int) -> np.ndarray:
         """The numeric topics' values (n, n_values) in the plan's template order."""
