@@ -14,7 +14,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-PACKAGES = ("sms-cli", "pin", "numpy", "scipy", "cvxpy", "clarabel", "mcap", "pydantic", "matplotlib", "jinja2")
+PACKAGES = ("sms-cli", "pin", "numpy", "scipy", "cvxpy", "clarabel", "mcap", "protobuf", "foxglove-schemas-protobuf", "pydantic", "matplotlib", "jinja2")
 
 
 def sha256_file(path: Path) -> str | None:

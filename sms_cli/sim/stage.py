@@ -24,11 +24,12 @@ if TYPE_CHECKING:
 def versions() -> dict[str, str]:
     import mcap
     import pinocchio
+    from google import protobuf
 
     from sms_cli import __version__
 
     return {"sms": __version__, "pinocchio": pinocchio.__version__, "numpy": np.__version__,
-            "mcap": getattr(mcap, "__version__", "?")}
+            "mcap": getattr(mcap, "__version__", "?"), "protobuf": protobuf.__version__}
 
 
 def _trace_csv(trace: dict, sm) -> str:
