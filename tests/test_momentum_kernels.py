@@ -273,10 +273,28 @@ CASES = [("momentum_ff_wheels", "wheels_free_floating"), ("momentum_shaping", "w
          ("momentum_hierarchical", "hierarchical"), ("momentum_se3_pd", "se3_pd"), ("momentum_quaternion", "quaternion_lyapunov")]
 
 
+def _par_of_spec(spec, law, n):
+    """The kernels' ``par`` of an ``attitude:`` block, field by field (the layout P_* of momentum_laws)."""
+    d = spec.model_dump()
+    par = np.zeros(K.P_N + n)
+    if law == "quaternion_lyapunov":
+        par[K.P_KP:K.P_KP + 3] = par[K.P_K] = d["k"]
+    else:
+        par[K.P_KP:K.P_KP + 3] = d["kp"]
+    par[K.P_KD:K.P_KD + 3] = d.get("kd_base") if "kd_base" in d else (d["kd"] if law != "wheels_free_floating" else 0.0)
+    par[K.P_N:] = d["kd"] if law == "wheels_free_floating" else d.get("kd_wheels") or 0.0
+    par[K.P_SHAPING] = float(bool(d.get("inertia_shaping")))
+    par[K.P_THRESHOLD] = d.get("mu_threshold") or 0.0
+    if d.get("kp_position") is not None:
+        par[K.P_TRANSLATE] = 1.0
+        par[K.P_KX:K.P_KX + 3], par[K.P_DX:K.P_DX + 3] = d["kp_position"], d["kd_position"]
+    return par
+
+
 @pytest.mark.parametrize("name,law", CASES)
 def test_the_law_classes_pass_pinocchios_quantities(name, law):
-    """The class of each test mission (Pinocchio's locked/shape quantities, its gains in ``par``) on random states:
-    its actuate and lyapunov_terms are the formulas on ``locked_shape``'s I, Λ, M_θ, G, J, c_b and T."""
+    """The class of each test mission (Pinocchio's locked/shape quantities, the mission's gains in ``par``) on random
+    states: its actuate and lyapunov_terms are the formulas on ``locked_shape``'s I, Λ, M_θ, G, J, c_b and T."""
     from sms_cli.dynamics.locked import locked_shape
     from sms_cli.mission.load import load_mission
     from sms_cli.model import compile_system
@@ -287,6 +305,8 @@ def test_the_law_classes_pass_pinocchios_quantities(name, law):
     sm = compile_system(loaded)
     obj = build_attitude_law(loaded.mission.simulation.attitude, sm)
     assert obj.kernel == law
+    par = _par_of_spec(loaded.mission.simulation.attitude, law, len(sm.wheels))
+    assert np.array_equal(obj.par, par)  # the mission's gains, where the kernels read them
     ls = locked_shape(sm, sm.q0)
     m = dict(wheels=np.asarray(sm.idx.wheels), mass=ls.mass, com_base=ls.com_base, Tv=ls.T[0:3, 3:], I=ls.I, G=ls.G, J=ls.J,
              Lam=ls.Lambda, M_theta=ls.M_theta)
@@ -297,12 +317,12 @@ def test_the_law_classes_pass_pinocchios_quantities(name, law):
         if law == "hierarchical":
             obj.stage = 1 + k % 2
         mem = obj.mem.copy()
-        rterms = reference_hierarchical_terms(q, v, ref, m, obj.par, obj.stage) if law == "hierarchical" else \
-            reference(law, q, v, ref, m, obj.par, mem)[2]
+        rterms = reference_hierarchical_terms(q, v, ref, m, par, obj.stage) if law == "hierarchical" else \
+            reference(law, q, v, ref, m, par, mem)[2]
         terms = obj.lyapunov_terms(q, v, ref)
         assert set(terms) == set(obj.terms)
         _close([terms[k] for k in obj.terms], [rterms[k] for k in obj.terms], "terms")
-        rtw, rwrench, _, _ = reference(law, q, v, ref, m, obj.par, mem)
+        rtw, rwrench, _, _ = reference(law, q, v, ref, m, par, mem)
         tw, wrench = obj.actuate(Sensed(0.0, q[3:7], v[3:6], q[:3], v[:3], np.zeros(0), np.zeros(0), v[6:], q, v), AttitudeRef(ref))
         _close(tw, rtw, "wheel torques")
         if law == "wheels_free_floating":
