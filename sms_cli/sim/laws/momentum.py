@@ -145,10 +145,12 @@ class _MomentumLaw:
         args = tuple(a.copy() if isinstance(a, np.ndarray) else a for a in self._args(q))
         mod = "sms_cli.sim.compiled.momentum_laws"
         n = len(self._wheels)
+        # cold-cache costs measured on the shared 2-core machine: 10-15 s for the first law kernel (its callees,
+        # the potential, the wheel law and LAPACK's solve, compile with it), 1-3 s for its W kernel
         return [KernelCall(f"{mod}:{self.kernel}", (q, v, ref, *args, self.par.copy(), self.mem.copy(), np.empty(n),
-                                                    np.empty(6)), cost=3.0),
+                                                    np.empty(6)), cost=10.0),
                 KernelCall(f"{mod}:{self.kernel}_lyapunov", (q, v, ref, *args, self.par.copy(), self.mem.copy(),
-                                                             np.empty(K.T_N)), cost=3.0)]
+                                                             np.empty(K.T_N)), cost=2.0)]
 
     def reset(self) -> None:
         self.mem[:] = self._mem0
