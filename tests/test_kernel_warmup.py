@@ -71,7 +71,7 @@ SIGNATURES = textwrap.dedent('''
     from sms_cli.sim.stage import planned_simulation
     from sms_cli.model.summary import model_summary
     import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.recording.encoding as B
-    import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A
+    import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A, sms_cli.sim.compiled.arm_laws as R
 
     loaded = load_mission(sys.argv[1])
     sm = compile_system(loaded)
@@ -84,7 +84,7 @@ SIGNATURES = textwrap.dedent('''
     with rec:
         sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
         sim.warm_up()
-        kernels = {getattr(m, n) for m in (D, L, B, C, A) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
+        kernels = {getattr(m, n) for m in (D, L, B, C, A, R) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
         before = {k.py_func.__name__: len(k.signatures) for k in kernels}
         res = sim.run()
         rec.finish(res.status)

@@ -357,7 +357,8 @@ class Simulation:
         else:
             buffer = getattr(self, "_buffer", None)
             groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
-                                   recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law)
+                                   recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law,
+                                   arm_law=self.arm_law)
         warm(groups)
 
     # ------------------------------------------------------------------ main loop

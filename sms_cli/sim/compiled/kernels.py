@@ -17,7 +17,7 @@ NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0)
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
-                  law=None) -> list[list[KernelCall]]:
+                  law=None, arm_law=None) -> list[list[KernelCall]]:
     """Groups of kernel calls (``warmup.warm``) of the SystemModel ``sm``'s simulation: the compiled
     loop's on ``loop_tree`` (the 12 arrays of ``SampleKinematics.tree``), else ``plant``'s (a ``CompiledPlant``; ``stops``: with the joint-stop
     kernels) and the Python loop's attitude ``law``'s (its ``warm_calls``, when it has kernels);
@@ -33,9 +33,22 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
             groups += plant.warm_calls(stops=stops)
         if hasattr(law, "warm_calls"):
             groups.append(law.warm_calls())
+        groups.append(python_arm_calls(sm, arm_law))
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
     return groups
+
+
+def python_arm_calls(sm, arm_law) -> list[KernelCall]:
+    """The Python loop's arm kernels: the joint reference (``references.JointProfile.at``, every tick, also
+    without an arm) and the arm law's (``sms_cli.sim.laws.arm``: its torque and its model's reduction)."""
+    n = len(sm.arm)
+    z = np.zeros(n)
+    calls = [KernelCall("sms_cli.sim.compiled.arm_laws:joint_reference",
+                        (np.zeros(2), np.zeros((2, n)), False, 0.0, z, z.copy(), z.copy()), cost=0.3)]
+    if hasattr(arm_law, "warm_calls"):
+        calls += arm_law.warm_calls(n)
+    return calls
 
 
 def loop_calls(sm, tree: tuple) -> list[KernelCall]:

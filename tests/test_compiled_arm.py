@@ -1,0 +1,136 @@
+"""The arm in the compiled engine: the arm-law, arm-model and joint-reference kernels against
+independent evaluations of their formulas, the compiled joint-space terms (CRBA, RNEA) against
+Pinocchio, and missions with an arm run by both loops (trace, metrics and recording equal to 1e-9)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from sms_cli.mission.load import load_mission
+from sms_cli.model import compile_system
+from sms_cli.sim.compiled import arm_laws as K
+
+ROOT = Path(__file__).resolve().parents[1]
+ARM_MISSIONS = ["caldera_smallsat.yaml", "astrobee_arm.yaml", "chevallard_chaser.yaml", "demeter_3dof.yaml"]
+
+
+@pytest.fixture(scope="module", params=ARM_MISSIONS)
+def arm_system(request):
+    return compile_system(load_mission(ROOT / "missions" / request.param))
+
+
+def _state(sm, seed):
+    rng = np.random.default_rng(seed)
+    q = pin.integrate(sm.model, sm.q0, rng.normal(scale=0.7, size=sm.nv))
+    return q, rng.normal(scale=0.5, size=sm.nv)
+
+
+def test_mass_matrix_and_bias_forces_equal_pinocchio(arm_system):
+    from sms_cli.sim.compiled.dynamics import bias_forces, joint_transforms, mass_matrix
+    from sms_cli.sim.compiled.tree import flatten
+
+    sm = arm_system
+    T = flatten(sm.model)
+    n = T.parent.size
+    for seed in range(3):
+        q, v = _state(sm, seed)
+        R, p = np.empty((n, 3, 3)), np.empty((n, 3))
+        joint_transforms(T.kind, T.axis, T.place_R, T.place_p, T.idx_q, q, R, p)
+        M, b = np.empty((sm.nv, sm.nv)), np.empty(sm.nv)
+        mass_matrix(T.parent, T.kind, T.axis, T.inertia, T.armature, T.idx_v, R, p, M)
+        bias_forces(T.parent, T.kind, T.axis, T.inertia, T.idx_v, R, p, v, b)
+        M_ref = sm.rigid_mass_matrix(q)
+        b_ref = pin.nonLinearEffects(sm.model, sm.data, q, v)
+        assert np.abs(M - M_ref).max() <= 1e-12 * max(1.0, np.abs(M_ref).max())
+        assert np.abs(b - b_ref).max() <= 1e-12 * max(1.0, np.abs(b_ref).max())
+
+
+def _law_case(seed, n=3):
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    return dict(q_ref=rng.normal(size=n) * 3, qd_ref=rng.normal(size=n), qdd_ref=rng.normal(size=n),
+                q=rng.normal(size=n) * 3, qd=rng.normal(size=n), M=A @ A.T + n * np.eye(n), h=rng.normal(size=n),
+                g=[np.abs(rng.normal(size=n)) + 0.1 for _ in range(6)])
+
+
+def _torque(code, par, wrap, c):
+    out = np.empty(len(c["q"]))
+    K.arm_torque(code, par, np.asarray(wrap, dtype=np.bool_), c["q_ref"], c["qd_ref"], c["qdd_ref"], c["q"], c["qd"],
+                 c["M"], c["h"], out)
+    return out
+
+
+def _par(*rows):
+    par = np.zeros((K.ARM_PAR_ROWS, len(rows[0])))
+    par[: len(rows)] = rows
+    return par
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_arm_law_kernels_equal_their_formulas(seed):
+    c = _law_case(seed)
+    g = c["g"]
+    wrap = [False, True, False]  # joint 2 continuous: its error modulo 2π into (−π, π]
+    e = c["q_ref"] - c["q"]
+    e[1] = math.remainder(e[1], 2 * math.pi)
+    ed = c["qd_ref"] - c["qd"]
+    ok = lambda got, want: np.abs(got - want).max() <= 1e-12 * max(1.0, np.abs(want).max())  # noqa: E731
+    # Chevallard 2019 cascaded PD, with and without the rate feedforward
+    for ff in (1.0, 0.0):
+        want = g[1] * (g[0] * e + ff * c["qd_ref"] - c["qd"])
+        assert ok(_torque(K.JOINT_PD, _par(g[0], g[1], np.full(3, ff)), wrap, c), want)
+    # Ruggiero 2020 joint SMC, tanh and sign
+    sig = -(g[1] * e + ed)
+    assert ok(_torque(K.JOINT_SMC, _par(g[0], g[1], g[2], np.zeros(3)), wrap, c), -g[0] * np.tanh(g[2] * sig))
+    assert ok(_torque(K.JOINT_SMC, _par(g[0], g[1], g[2], np.ones(3)), wrap, c), -g[0] * np.sign(sig))
+    # computed torque
+    assert ok(_torque(K.COMPUTED_TORQUE, _par(g[0], g[1]), wrap, c), c["M"] @ (c["qdd_ref"] + g[1] * ed + g[0] * e) + c["h"])
+    # Caldera 2019 joint SMC on computed torque, tanh and sign
+    s = ed + g[4] * e
+    for sign, sw in ((0.0, np.tanh(g[3] * s)), (1.0, np.sign(s))):
+        want = c["M"] @ (c["qdd_ref"] + g[0] * ed + g[1] * e + g[2] * sw) + c["h"]
+        assert ok(_torque(K.SMC_COMPUTED_TORQUE, _par(g[0], g[1], g[2], g[3], g[4], np.full(3, sign)), wrap, c), want)
+
+
+def test_arm_model_kernel_is_the_schur_complement():
+    rng = np.random.default_rng(3)
+    nx = 9
+    A = rng.normal(size=(nx, nx))
+    M, nb = A @ A.T + nx * np.eye(nx), rng.normal(size=nx)
+    a = np.array([6, 7, 8])
+    for p in (np.array([0, 1, 2]), np.array([0, 1, 2, 3, 4, 5]), np.zeros(0, dtype=np.int64)):
+        Ms, hs = np.empty((3, 3)), np.empty(3)
+        K.arm_model_terms(M, nb, a, p.astype(np.int64), Ms, hs)
+        if p.size:  # eliminate the free coordinates: with q̈_p = M_pp⁻¹ (τ_p − M_pa q̈_a − n_p) and τ_p = 0
+            inv = np.linalg.inv(M[np.ix_(p, p)])
+            want_M = M[np.ix_(a, a)] - M[np.ix_(a, p)] @ inv @ M[np.ix_(p, a)]
+            want_h = nb[a] - M[np.ix_(a, p)] @ inv @ nb[p]
+        else:
+            want_M, want_h = M[np.ix_(a, a)], nb[a]
+        assert np.abs(Ms - want_M).max() <= 1e-12 * np.abs(want_M).max()
+        assert np.abs(hs - want_h).max() <= 1e-12 * max(1.0, np.abs(want_h).max())
+
+
+def test_joint_reference_kernel_is_the_quintic_through_the_waypoints():
+    times = np.array([0.0, 2.0, 5.0])
+    points = np.array([[0.0, 1.0], [1.0, -1.0], [3.0, 0.5]])
+    for tau, k in ((0.7, 1), (3.1, 2)):
+        T = times[k] - times[k - 1]
+        s = (tau - times[k - 1]) / T
+        d = points[k] - points[k - 1]
+        want = (points[k - 1] + (10 * s**3 - 15 * s**4 + 6 * s**5) * d, (30 * s**2 - 60 * s**3 + 30 * s**4) / T * d,
+                (60 * s - 180 * s**2 + 120 * s**3) / T**2 * d)
+        got = [np.empty(2) for _ in range(3)]
+        K.joint_reference(times, points, False, tau, *got)
+        for x, y in zip(got, want):
+            assert np.abs(x - y).max() <= 1e-12
+        K.joint_reference(times, points, True, tau, *got)  # step: the segment's start point, at rest
+        assert np.array_equal(got[0], points[k - 1]) and not got[1].any() and not got[2].any()
+    got = [np.empty(2) for _ in range(3)]
+    K.joint_reference(times, points, False, 9.0, *got)
+    assert np.array_equal(got[0], points[-1]) and not got[1].any() and not got[2].any()
