@@ -224,13 +224,13 @@ def test_divergence_stops_both_engines_at_the_same_step(tmp_path):
 def test_engine_choice(tmp_path):
     from sms_cli.sim.engine import Simulation
 
-    loaded = load_mission(ROOT / "missions" / "caldera_s1_slew.yaml")
+    loaded = load_mission(ROOT / "missions" / "chevallard_deploy_track.yaml")
     sm = compile_system(loaded)
     spec = loaded.mission.simulation.model_copy(update={"engine": "compiled"})
     with pytest.raises(InputError) as exc:
         Simulation(sm, spec, None, progress=False).run()
     assert "compiled engine cannot run this mission" in exc.value.render() and exc.value.exit_code == 2
-    assert "arm" in exc.value.render()
+    assert "resolved-rate" in exc.value.render()
     assert Simulation(sm, loaded.mission.simulation, None, progress=False).compiled_unsupported() is not None
 
 
