@@ -174,11 +174,12 @@ def _compare_missions(tmp_path, mission: str):
 
 
 @pytest.mark.parametrize("mission", ["caldera_s1_slew.yaml", "caldera_s2_arm.yaml", "caldera_s3_slew_arm.yaml",
-                                     "astrobee_arm.yaml", "astrobee_slew_twisting.yaml"])
+                                     "astrobee_arm.yaml", "astrobee_slew_twisting.yaml", "astrobee_slew_backstepping.yaml"])
 def test_compiled_loop_equals_the_python_loop_on_missions_with_an_arm(tmp_path, mission):
     """computed_torque and smc_computed_torque on the attitude-held model (Caldera S1-S3: M* and h* from the
     compiled CRBA/RNEA against Pinocchio's), the model-free joint smc (Astrobee), step and quintic joint
-    references across phases, thrusters and wheels, and joint stops (arrivals, contacts, releases)."""
+    references across phases, thrusters and wheels, joint stops (arrivals, contacts, releases), and the
+    backstepping law's online inertia J(q) and J̇, which vary with the arm (compiled CRBA against Pinocchio's)."""
     py, msgs = _compare_missions(tmp_path, mission)
     assert py["overall"]["joint_torque_peak"] > 0.0
     events = [m["name"] for _, m in msgs["/events"]]

@@ -98,14 +98,16 @@ SIGNATURES = textwrap.dedent('''
                                              ("tests/data/compiled_law_quaternion_pd", "compiled"),
                                              ("missions/astrobee_arm", "compiled"),
                                              ("missions/caldera_s2_arm", "compiled"),
-                                             ("missions/astrobee_slew_backstepping", "python, compiled plant"),
+                                             ("missions/astrobee_slew_backstepping", "compiled"),
+                                             ("missions/caldera_eo", "python, compiled plant"),
                                              ("tests/data/compiled_law_backstepping", "python")])
 def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     """Every kernel the run calls was called by the warm-up with the same argument types: no
     dispatcher gains a signature during the run (the compiled loop with mrp_feedback, with smc and a
     rigid body, with quaternion_pd and the SystemModel's body, with an arm: its model-free law and joint
-    stops (astrobee_arm), its computed-torque law on the attitude-held model with wheels (caldera_s2_arm);
-    the Python loop with the compiled plant, an arm law, joint stops and a recording; the Python loop running an attitude law's kernels, with the
+    stops (astrobee_arm), its computed-torque law on the attitude-held model with wheels (caldera_s2_arm),
+    the online inertia J(q) with an arm (astrobee_slew_backstepping); the Python loop with the compiled
+    plant, an arm law on its model, joint stops and a recording (caldera_eo); the Python loop running an attitude law's kernels, with the
     SystemModel's online body)."""
     script = tmp_path / "sigs.py"
     script.write_text(SIGNATURES)

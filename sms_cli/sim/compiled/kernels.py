@@ -12,8 +12,8 @@ import numpy as np
 from sms_cli.sim.compiled.warmup import KernelCall
 
 # the attitude-law arguments of run_ticks when no law is configured (code, parameters, J, G, Js, body
-# code); a configured law's have the same types (CompiledSimulation._law_args)
-NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0)
+# code, difference step of J̇); a configured law's have the same types (CompiledSimulation._law_args)
+NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
@@ -102,7 +102,7 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
     q = sm.q0.astype(float).copy()
     w3, w = np.zeros(3), np.zeros(nw)
     ones = np.ones(nw)
-    code, par, I, G, Js, _ = NO_LAW
+    code, par, I, G, Js, _, _ = NO_LAW
     qe = np.array([0.0, 0.0, 0.0, 1.0])
     ctl, dyn, att = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics", "sms_cli.sim.compiled.attitude_laws"
     # the laws as attitude_law calls them (its callees first), each with the same arguments

@@ -22,7 +22,7 @@ from sms_cli.sim.compiled.arm_laws import arm_model_terms, arm_torque, joint_ref
 from sms_cli.sim.compiled.attitude_laws import attitude_law, system_momentum, wheel_momentum
 from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
                                           limited_torque, may_reach_limit)
-from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, joint_transforms, mass_matrix,
+from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
                                            momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
                                            world_placements)
 from sms_cli.sim.compiled.stops import stop_step
@@ -51,6 +51,18 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_
         out[k] = 1.0 / col[wheel_v[k]]
 
 
+_BASE_ANGULAR = np.array([3, 4, 5], dtype=np.int64)
+
+
+@njit(**JIT)
+def system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M, out):
+    """The locked attitude inertia (3×3, base frame, about the system CoM; ``plant_models.effective_inertia``)
+    at the joint transforms (R_rel, p_rel): the Schur complement of H on the base angular block after
+    eliminating the coordinates ``elim`` (base linear, wheels), symmetrised (M: nv×nv scratch)."""
+    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M)
+    arm_model_terms(M, np.zeros(M.shape[0]), _BASE_ANGULAR, elim, out, np.empty(3))
+
+
 @njit(**JIT)
 def run_ticks(
     # tree
@@ -58,7 +70,7 @@ def run_ticks(
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
     # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
-    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, q_ref,
+    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, fd_step, q_ref,
     settle_tol, settle_time,
     # arm: coordinates, law (arm_laws.arm_torque; code −1: none) with its model's indices (arm_model_terms),
     # effort limits, the phase's joint reference (arm_laws.joint_reference) and its start time
@@ -91,7 +103,9 @@ def run_ticks(
 
     The law sees step references (ω_r = ω̇_r = 0), the constant inertia J_law with J̇ = 0 and the
     internal momentum h from the wheels (body_code 0: G_law, Js_law, ``RigidBody``) or from the
-    system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``)."""
+    system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``), or the online
+    inertia (body_code 2: ``SystemBody(online=True)``): J(q) the locked inertia (``system_inertia``) and
+    J̇ its central difference along v with the step fd_step, h as for body_code 1."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
@@ -125,6 +139,15 @@ def run_ticks(
     model_law = arm_code == 2 or arm_code == 3  # arm_laws.MODEL_LAWS
     on_time, pen_max = np.zeros(ns), np.zeros(ns)
     Rb = np.empty((3, 3))
+    # online inertia (body_code 2): the coordinates eliminated from the locked inertia (base linear, wheels)
+    elim = np.empty(3 + nw, dtype=np.int64)
+    for a in range(3):
+        elim[a] = a
+    for i in range(nw):
+        elim[3 + i] = wheel_v[i]
+    J_on, Jd_on, J_pm = np.empty((3, 3)), np.empty((3, 3)), np.empty((2, 3, 3))
+    dq, q_fd = np.empty(nv), np.empty(nq)
+    R_fd, p_fd = np.empty((n, 3, 3)), np.empty((n, 3))
     tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
     t = t0
     steps = 0
@@ -142,11 +165,27 @@ def run_ticks(
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
         if law_on:
             error_quaternion(q[3:7], q_ref, qe)
-            if body_code == 1:
-                system_momentum(q[3:7], me[3:6], J_law, omega, h)
+            if body_code == 2:  # SystemBody.inertia, inertia_rate
+                system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
+                for a in range(nv):
+                    dq[a] = fd_step * v[a]
+                for sgn in range(2):
+                    integrate(kind, axis, idx_q, idx_v, q, dq, q_fd)
+                    joint_transforms(kind, axis, place_R, place_p, idx_q, q_fd, R_fd, p_fd)
+                    system_inertia(parent, kind, axis, inertia, armature, idx_v, R_fd, p_fd, elim, M_full, J_pm[sgn])
+                    for a in range(nv):
+                        dq[a] = -fd_step * v[a]
+                for a in range(3):
+                    for b in range(3):
+                        Jd_on[a, b] = (J_pm[0, a, b] - J_pm[1, a, b]) / (2.0 * fd_step)
+            if body_code >= 1:
+                system_momentum(q[3:7], me[3:6], J_on if body_code == 2 else J_law, omega, h)
             else:
                 wheel_momentum(G_law, Js_law, omega, ws, h)
-            attitude_law(law_code, qe, omega, zero3, zero3, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
+            if body_code == 2:
+                attitude_law(law_code, qe, omega, zero3, zero3, ws, J_on, Jd_on, h, G_law, Js_law, law_par, law_mem, t, T)
+            else:
+                attitude_law(law_code, qe, omega, zero3, zero3, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
             if thrusters:
                 sat = clip_attitude_torque(T, torque_limit)
             else:

@@ -49,10 +49,6 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         if bad:
             return why
     why = tree_reason(sm.model)
-    if why is None and getattr(att_spec, "inertia", None) == "online" and sm.arm:
-        why = "the attitude law's online inertia varies with the arm's configuration"
-    if why is None and getattr(att_spec, "inertia", None) == "online" and not _inertia_is_constant(sm):
-        why = "the attitude law's online inertia varies with the wheel angles (rotors not symmetric about their axes)"
     return why
 
 
@@ -64,26 +60,6 @@ def _compiled_laws():
 
 
 COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping")
-
-
-def _inertia_is_constant(sm: SystemModel) -> bool:
-    """Whether the locked inertia J(q) of an arm-less rigid model is the same at other wheel angles (the
-    only coordinates it can depend on: base velocities are in the base frame), so that the compiled loop
-    may use J(q0) and J̇ = 0 for an ``online`` inertia: true when every rotor is symmetric about its axis
-    (the declared wheels always are)."""
-    from sms_cli.sim.laws.plant_models import effective_inertia
-
-    import pinocchio as pin
-
-    J0 = effective_inertia(sm, sm.q0)
-    for angle in (0.7, 2.1):
-        turn = np.zeros(sm.nv)
-        for w in sm.wheels:
-            turn[w.v_index] = angle + w.v_index
-        q = pin.integrate(sm.model, sm.q0, turn)
-        if np.abs(effective_inertia(sm, q) - J0).max() > 1e-12 * max(1.0, np.abs(J0).max()):
-            return False
-    return True
 
 
 class CompiledSimulation:
@@ -131,10 +107,10 @@ class CompiledSimulation:
                           wrench=None if wrench is None else wrench[idx])
 
     def _law_args(self):
-        """run_ticks's law arguments: (code, parameters, J, G, Js, body code), from the law object (its
+        """run_ticks's law arguments: (code, parameters, J, G, Js, body code, J̇ step), from the law object (its
         ``code``, ``par``) and its body model: a ``RigidBody``'s constant J and wheels (body code 0), a
-        ``SystemBody``'s inertia at q0 (constant on the models the compiled loop runs; ``online``: see
-        ``_inertia_is_constant``) with h from the system's momentum (body code 1), or none."""
+        ``SystemBody``'s inertia at q0 with h from the system's momentum (body code 1), or its online J(q)
+        and J̇ by the same central difference (body code 2), or none."""
         from sms_cli.sim.compiled.kernels import NO_LAW
         from sms_cli.sim.laws.plant_models import SystemBody
 
@@ -142,13 +118,14 @@ class CompiledSimulation:
         if law is None:
             return NO_LAW
         b = law.body
-        _, _, J, G, Js, body_code = NO_LAW
+        _, _, J, G, Js, body_code, step = NO_LAW
         if isinstance(b, SystemBody):
-            J, body_code = b.initial_inertia, 1
+            J, body_code = b.initial_inertia, 2 if b.online else 1
+            step = float(b.h)
         elif b is not None:
             J, G, Js = b.J, b.G, b.Js
         f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
-        return int(law.code), f(law.par), f(J), f(G), f(Js), body_code
+        return int(law.code), f(law.par), f(J), f(G), f(Js), body_code, step
 
     def _arm_args(self):
         """run_ticks's arm arguments: coordinates, law (its ``code``, parameter rows, wrap mask; −1: none),
