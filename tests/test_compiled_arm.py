@@ -200,10 +200,12 @@ def test_compiled_loop_equals_the_python_loop_on_missions_with_an_arm(tmp_path, 
     assert any(any(x != 0.0 for x in m.values() if isinstance(x, float)) for _, m in msgs["/joints/torque"])
 
 
-def test_both_loops_agree_on_an_arm_model_with_an_offset_base_centre_of_mass():
+def test_both_loops_agree_on_an_arm_model_with_an_offset_base_centre_of_mass_and_low_effort_limits():
     """The trace of the two loops (no recording) on caldera_smallsat with its base body's CoM moved off the
-    base frame origin (the shipped robots have it at the origin): the base motion (position and base-body
-    momentum m₀ R (v + ω × c), ``base_motion.base_kinematics``) and the whole trace to 1e-9."""
+    base frame origin and joint effort limits the law exceeds (the shipped robots have the CoM at the origin
+    and their arm laws stay below the limits): the base motion (position and base-body momentum
+    m₀ R (v + ω × c), ``base_motion.base_kinematics``), the clipped joint torques and the saturation flags,
+    and the whole trace, to 1e-9."""
     from sms_cli.sim.engine import Simulation
 
     loaded = load_mission(ROOT / "missions" / "caldera_smallsat.yaml")
@@ -212,13 +214,16 @@ def test_both_loops_agree_on_an_arm_model_with_an_offset_base_centre_of_mass():
         sm = compile_system(loaded)
         Y = sm.model.inertias[1]
         sm.model.inertias[1] = pin.Inertia(Y.mass, np.array([0.05, -0.03, 0.02]), Y.inertia)
+        for joint, limit in zip(sm.arm, (0.004, 0.02, 0.01)):  # N m (the URDF's 2 N m are never reached)
+            joint.max_effort = limit
         spec = loaded.mission.simulation.model_copy(update={"engine": engine})
         res = Simulation(sm, spec, None, False).run()
         assert res.timing["engine"] == engine and res.status == "completed"
         traces[engine] = res.trace
     a, b = traces["python"], traces["compiled"]
     assert a.keys() == b.keys()
-    assert np.abs(a["base_motion"][:, 3:]).max() > 0.1  # kg m/s: the arm pushes the base
+    assert np.abs(a["base_motion"][:, 3:]).max() > 0.01  # kg m/s: the arm pushes the base
+    assert a["saturated"].any() and np.abs(a["joint_torque"][:, 0]).max() == 0.004  # clipped to the limit
     for k in a:
         x, y = np.asarray(a[k], float), np.asarray(b[k], float)
         assert x.shape == y.shape, k
