@@ -228,3 +228,21 @@ def test_both_loops_agree_on_an_arm_model_with_an_offset_base_centre_of_mass_and
         x, y = np.asarray(a[k], float), np.asarray(b[k], float)
         assert x.shape == y.shape, k
         assert np.allclose(x, y, rtol=1e-9, atol=1e-9, equal_nan=True), k
+
+
+def test_the_compiled_loop_refuses_what_it_does_not_model_of_an_arm():
+    """Noisy joint sensors, a held base, end-effector tracking and payloads stay in the Python loop, each
+    with its reason; the arm law, the waypoints and the stops themselves are accepted."""
+    from sms_cli.sim.compiled.runner import unsupported_reason
+    from sms_cli.sim.schema import NoiseSpec
+
+    loaded = load_mission(ROOT / "missions" / "caldera_s2_arm.yaml")
+    sm = compile_system(loaded)
+    spec = loaded.mission.simulation
+    assert unsupported_reason(sm, spec, spec.attitude) is None
+    noisy = spec.model_copy(update={"sensors": spec.sensors.model_copy(update={"joints": NoiseSpec(noise=1e-4)})})
+    assert unsupported_reason(sm, noisy, spec.attitude) == "the sensors are noisy"
+    biased = spec.model_copy(update={"sensors": spec.sensors.model_copy(update={"joints": NoiseSpec(bias=1e-3)})})
+    assert unsupported_reason(sm, biased, spec.attitude) == "the sensors are noisy"
+    held = spec.model_copy(update={"phases": [spec.phases[0].model_copy(update={"base_mode": "fixed"}), *spec.phases[1:]]})
+    assert unsupported_reason(sm, held, spec.attitude) == "a phase holds the base fixed"

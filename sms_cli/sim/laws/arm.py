@@ -59,8 +59,11 @@ class _KernelArmLaw:
         n = q.size
         Ms, hs = self.dyn.terms(s) if self.dyn is not None else _NO_MODEL
         out = np.empty(n)
-        arm_torque(self.code, self._params(n), self.wrap_mask(n), _f64(ref.q), _f64(ref.qd), _f64(ref.qdd), q,
-                   _f64(s.qd_arm), _f64(Ms), _f64(hs), out)
+        if getattr(self, "_kernel_args", (None,))[0] != n:  # the parameter rows and mask, made once
+            self._kernel_args = (n, self._params(n), self.wrap_mask(n))
+        _, par, wrap = self._kernel_args
+        arm_torque(self.code, par, wrap, _f64(ref.q), _f64(ref.qd), _f64(ref.qdd), q, _f64(s.qd_arm), _f64(Ms), _f64(hs),
+                   out)
         return out
 
     def warm_calls(self, n: int) -> list:
