@@ -35,8 +35,8 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         (spec.ndi is not None or spec.resolved_rate is not None, "the mission uses NDI or resolved-rate control"),
         (att_spec is not None and not isinstance(att_spec, _compiled_laws()),
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
-        (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0) for n in (spec.sensors.gyro, spec.sensors.attitude)),
-         "the sensors are noisy"),
+        (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
+             for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
         (bool(spec.disturbances), "the mission has disturbances"),
         (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
          "the mission has real thrusters (thrusters:), which the Python loop models"),
