@@ -306,10 +306,10 @@ def test_a_run_reports_the_time_the_recording_shows_on_the_stop(drive_runs):
 
 
 def test_both_plant_engines_give_the_same_run(drive_runs):
-    """Pinocchio (engine: python) and the compiled plant (auto): the same metrics, stop events and
-    joint trajectories, to 1e-9."""
+    """Pinocchio (engine: python) and the compiled loop with its stop law (auto, ``sms_cli.sim.compiled.stops``):
+    the same metrics, stop events and joint trajectories, to 1e-9."""
     (py, a), (cc, b) = drive_runs["python"], drive_runs["auto"]
-    assert py["timing"]["engine"] == "python" and cc["timing"]["engine"] == "python, compiled plant"
+    assert py["timing"]["engine"] == "python" and cc["timing"]["engine"] == "compiled"
     assert py["overall"]["joint_stop_time_s"] > 0
     assert_tree_close(py["overall"], cc["overall"], "overall", abs_=1e-9)
     assert_tree_close(py["phases"], cc["phases"], "phases", abs_=1e-9)

@@ -71,7 +71,7 @@ SIGNATURES = textwrap.dedent('''
     from sms_cli.sim.stage import planned_simulation
     from sms_cli.model.summary import model_summary
     import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.recording.encoding as B
-    import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A
+    import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A, sms_cli.sim.compiled.arm_laws as R
     import sms_cli.sim.compiled.momentum_laws as Mo
 
     loaded = load_mission(sys.argv[1])
@@ -85,7 +85,7 @@ SIGNATURES = textwrap.dedent('''
     with rec:
         sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
         sim.warm_up()
-        kernels = {getattr(m, n) for m in (D, L, B, C, A, Mo) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
+        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
         before = {k.py_func.__name__: len(k.signatures) for k in kernels}
         res = sim.run()
         rec.finish(res.status)
@@ -97,14 +97,19 @@ SIGNATURES = textwrap.dedent('''
 @pytest.mark.parametrize("mission, engine", [("missions/basilisk_rw_reference", "compiled"),
                                              ("tests/data/compiled_law_smc", "compiled"),
                                              ("tests/data/compiled_law_quaternion_pd", "compiled"),
-                                             ("missions/astrobee_arm", "python, compiled plant"),
+                                             ("missions/astrobee_arm", "compiled"),
+                                             ("missions/caldera_s2_arm", "compiled"),
+                                             ("missions/astrobee_slew_backstepping", "compiled"),
+                                             ("missions/caldera_eo", "python, compiled plant"),
                                              ("tests/data/compiled_law_backstepping", "python"),
                                              ("tests/data/momentum_offset", "python")])
 def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     """Every kernel the run calls was called by the warm-up with the same argument types: no
     dispatcher gains a signature during the run (the compiled loop with mrp_feedback, with smc and a
-    rigid body, with quaternion_pd and the SystemModel's body; the Python loop with the compiled
-    plant, joint stops and a recording; the Python loop running an attitude law's kernels, with the
+    rigid body, with quaternion_pd and the SystemModel's body, with an arm: its model-free law and joint
+    stops (astrobee_arm), its computed-torque law on the attitude-held model with wheels (caldera_s2_arm),
+    the online inertia J(q) with an arm (astrobee_slew_backstepping); the Python loop with the compiled
+    plant, an arm law on its model, joint stops and a recording (caldera_eo); the Python loop running an attitude law's kernels, with the
     SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W)."""
     script = tmp_path / "sigs.py"
     script.write_text(SIGNATURES)

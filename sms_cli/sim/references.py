@@ -54,15 +54,21 @@ class JointProfile:
     def final(self) -> np.ndarray:
         return self.points[-1]
 
+    @property
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(times (m+1,), points (m+1, n)) as ``sms_cli.sim.compiled.arm_laws.joint_reference`` takes them."""
+        if getattr(self, "_arrays", None) is None:
+            n = self.points[0].size
+            self._arrays = (np.array(self.times, float),
+                            np.ascontiguousarray(np.reshape(self.points, (len(self.points), n)), dtype=float))
+        return self._arrays
+
     def at(self, tau: float) -> ArmRef:
-        n = self.points[0].size
-        for k in range(1, len(self.times)):
-            t0, t1 = self.times[k - 1], self.times[k]
-            if tau < t1:
-                if self.step:
-                    return ArmRef(self.points[k - 1].copy(), np.zeros(n), np.zeros(n))
-                p, dp, ddp = quintic((tau - t0) / (t1 - t0))
-                d = self.points[k] - self.points[k - 1]
-                T = t1 - t0
-                return ArmRef(self.points[k - 1] + p * d, dp / T * d, ddp / T**2 * d)
-        return ArmRef(self.points[-1].copy(), np.zeros(n), np.zeros(n))
+        """The reference at time tau from the phase start (the compiled loop's kernel, ``joint_reference``)."""
+        from sms_cli.sim.compiled.arm_laws import joint_reference
+
+        times, points = self.arrays
+        n = points.shape[1]
+        q, qd, qdd = np.empty(n), np.empty(n), np.empty(n)
+        joint_reference(times, points, self.step, float(tau), q, qd, qdd)
+        return ArmRef(q, qd, qdd)

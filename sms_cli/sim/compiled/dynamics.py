@@ -758,3 +758,112 @@ def inverse_mass_columns(parent, kind, axis, place_R, place_p, inertia, leaf_IA,
     R_rel, p_rel = ws[8], ws[9]
     joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
     _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws)
+
+
+# ----------------------------------------------------------------------------- joint-space terms (arm laws)
+@njit(**_JIT)
+def mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M):
+    """M (nv×nv) = the joint-space inertia H(q) with the rotor armature on its diagonal (Pinocchio's
+    ``crba``, both triangles), by the composite-rigid-body algorithm at the joint transforms (R_rel, p_rel)."""
+    n, nv = parent.shape[0], armature.shape[0]
+    Ic = np.empty((n, 6, 6))
+    for i in range(n):
+        for a in range(6):
+            for b in range(6):
+                Ic[i, a, b] = inertia[i, a, b]
+    J, K = np.empty((6, 6)), np.empty((6, 6))
+    for i in range(n - 1, -1, -1):
+        if parent[i] >= 0:
+            add_inertia_to_parent(R_rel[i], p_rel[i], Ic[i], J, K, Ic[parent[i]])
+    for a in range(nv):
+        for b in range(nv):
+            M[a, b] = 0.0
+    F = np.empty((6, 6))  # rows: the force columns I_c S of joint i, carried to the ancestors
+    Ft = np.empty(6)
+    S = np.empty(6)
+    for i in range(n):
+        ni = 6 if kind[i] == FREE_FLYER else 1
+        if ni == 6:
+            for c in range(6):
+                for a in range(6):
+                    F[c, a] = Ic[i, a, c]
+        else:
+            _subspace(kind[i], axis[i], S)
+            for a in range(6):
+                acc = 0.0
+                for b in range(6):
+                    acc += Ic[i, a, b] * S[b]
+                F[0, a] = acc
+        j = i
+        while True:
+            for c in range(ni):
+                col = idx_v[i] + c
+                if kind[j] == FREE_FLYER:
+                    for r in range(6):
+                        M[idx_v[j] + r, col] = F[c, r]
+                        M[col, idx_v[j] + r] = F[c, r]
+                else:
+                    _subspace(kind[j], axis[j], S)
+                    acc = 0.0
+                    for r in range(6):
+                        acc += S[r] * F[c, r]
+                    M[idx_v[j], col] = acc
+                    M[col, idx_v[j]] = acc
+            if parent[j] < 0:
+                break
+            for c in range(ni):
+                force_act(R_rel[j], p_rel[j], F[c], Ft)
+                for a in range(6):
+                    F[c, a] = Ft[a]
+            j = parent[j]
+    for k in range(nv):
+        M[k, k] += armature[k]
+
+
+@njit(**_JIT)
+def bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, out):
+    """out (nv) = the bias forces C(q, v) v at zero acceleration (Pinocchio's ``nonLinearEffects``, no
+    gravity), by recursive Newton-Euler at the joint transforms (R_rel, p_rel)."""
+    n = parent.shape[0]
+    vel = np.empty((n, 6))
+    acc = np.zeros((n, 6))
+    f = np.empty((n, 6))
+    S = np.empty(6)
+    m = np.empty(6)
+    tmp = np.empty(6)
+    body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
+    for i in range(n):
+        if kind[i] != FREE_FLYER:
+            motion_act_inv(R_rel[i], p_rel[i], acc[parent[i]], acc[i])
+            _subspace(kind[i], axis[i], S)
+            qd = v[idx_v[i]]
+            for a in range(6):
+                m[a] = S[a] * qd
+            motion_cross(vel[i], m, tmp)
+            for a in range(6):
+                acc[i, a] += tmp[a]
+        for a in range(6):
+            x = 0.0
+            for b in range(6):
+                x += inertia[i, a, b] * vel[i, b]
+            m[a] = x
+        force_cross(vel[i], m, tmp)
+        for a in range(6):
+            x = tmp[a]
+            for b in range(6):
+                x += inertia[i, a, b] * acc[i, b]
+            f[i, a] = x
+    for i in range(n - 1, -1, -1):
+        if kind[i] == FREE_FLYER:
+            for a in range(6):
+                out[idx_v[i] + a] = f[i, a]
+        else:
+            _subspace(kind[i], axis[i], S)
+            x = 0.0
+            for a in range(6):
+                x += S[a] * f[i, a]
+            out[idx_v[i]] = x
+        if parent[i] >= 0:
+            force_act(R_rel[i], p_rel[i], f[i], tmp)
+            for a in range(6):
+                f[parent[i], a] += tmp[a]

@@ -12,12 +12,12 @@ import numpy as np
 from sms_cli.sim.compiled.warmup import KernelCall
 
 # the attitude-law arguments of run_ticks when no law is configured (code, parameters, J, G, Js, body
-# code); a configured law's have the same types (CompiledSimulation._law_args)
-NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0)
+# code, difference step of J̇); a configured law's have the same types (CompiledSimulation._law_args)
+NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
-                  law=None) -> list[list[KernelCall]]:
+                  law=None, arm_law=None, loop=None) -> list[list[KernelCall]]:
     """Groups of kernel calls (``warmup.warm``) of the SystemModel ``sm``'s simulation: the compiled
     loop's on ``loop_tree`` (the 12 arrays of ``SampleKinematics.tree``), else ``plant``'s (a ``CompiledPlant``; ``stops``: with the joint-stop
     kernels) and the Python loop's attitude ``law``'s (its ``warm_calls``, when it has kernels);
@@ -27,20 +27,34 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
 
     groups: list[list[KernelCall]] = []
     if loop_tree is not None:
-        groups += [loop_calls(sm, loop_tree), loop_callee_calls(sm, loop_tree)]
+        groups += [loop_calls(sm, loop_tree, loop), loop_callee_calls(sm, loop_tree)]
     else:
         if plant is not None:
             groups += plant.warm_calls(stops=stops)
         if hasattr(law, "warm_calls"):
             groups.append(law.warm_calls())
+        groups.append(python_arm_calls(sm, arm_law))
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
     return groups
 
 
-def loop_calls(sm, tree: tuple) -> list[KernelCall]:
+def python_arm_calls(sm, arm_law) -> list[KernelCall]:
+    """The Python loop's arm kernels: the joint reference (``references.JointProfile.at``, every tick, also
+    without an arm) and the arm law's (``sms_cli.sim.laws.arm``: its torque and its model's reduction)."""
+    n = len(sm.arm)
+    z = np.zeros(n)
+    calls = [KernelCall("sms_cli.sim.compiled.arm_laws:joint_reference",
+                        (np.zeros(2), np.zeros((2, n)), False, 0.0, z, z.copy(), z.copy()), cost=0.3)]
+    if hasattr(arm_law, "warm_calls"):
+        calls += arm_law.warm_calls(n)
+    return calls
+
+
+def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     """The compiled loop's calls on throw-away data, callees first (ABA through the effective wheel
-    inertia, the plant step), then ``run_ticks`` itself (the argument types of ``CompiledSimulation.run``)."""
+    inertia, the plant step), then ``run_ticks`` itself (the argument types of ``CompiledSimulation.run``;
+    its arm and joint-stop arguments from ``loop``, the ``CompiledSimulation``, when given)."""
     from sms_cli.sim.compiled.dynamics import workspace
 
     plant_tree = tree[:7] + tree[9:]  # without mass and com
@@ -52,15 +66,31 @@ def loop_calls(sm, tree: tuple) -> list[KernelCall]:
     rigid = (np.zeros((6, 0)), np.zeros((6, 6)), none_f, none_f, none_i, none_i, none_f, none_f, none_f)  # no modes, springs
     e1, e2 = np.empty(1), np.empty((1, nw))
     mod = "sms_cli.sim.compiled"
-    return [
+    n_arm = len(sm.arm)
+    if loop is not None:
+        arm_args, stop_args = loop._arm_args(), loop._stop_args()
+    else:
+        i0 = np.zeros(0, dtype=np.int64)
+        arm_args = (i0, i0, -1, np.zeros((6, 0)), np.zeros(0, dtype=np.bool_), i0, i0, none_f)
+        stop_args = (False, i0, i0, i0, none_f, none_f, 0.0, i0, np.zeros(0, dtype=np.bool_), none_f)
+    ns = stop_args[1].shape[0]
+    ref = (np.zeros(2), np.zeros((2, n_arm)), False, 0.0)
+    stops = []
+    if stop_args[0]:  # the stop law's plant step (the loop calls it instead of rkmk4_step)
+        ev = np.empty((2 * ns, 10))
+        stops = [KernelCall(f"{mod}.stops:stop_step", (plant_tree, *stop_args[2:], q, v, np.zeros(sm.nv), 0.01, 0.0, q.copy(),
+                                                       v.copy(), np.zeros(ns), np.zeros(ns), ev, np.zeros(1, dtype=np.int64),
+                                                       ws), cost=6.0)]
+    return stops + [
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws), cost=4.5),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
-            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, 0.0, 1.0, 1, 0, 0, 1e9, q.copy(), v.copy(), np.zeros(4),
-            np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_), np.empty((1, 3)), np.empty((1, 6)),
-            e1, e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2), cost=6.0),
+            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *arm_args, *ref, *stop_args, 0.0, 1.0, 1, 0, 0, 1e9,
+            q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
+            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), e1, np.empty((1, sm.nq)),
+            np.empty((1, sm.nv)), e2, np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
     ]
 
 
@@ -72,7 +102,7 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
     q = sm.q0.astype(float).copy()
     w3, w = np.zeros(3), np.zeros(nw)
     ones = np.ones(nw)
-    code, par, I, G, Js, _ = NO_LAW
+    code, par, I, G, Js, _, _ = NO_LAW
     qe = np.array([0.0, 0.0, 0.0, 1.0])
     ctl, dyn, att = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics", "sms_cli.sim.compiled.attitude_laws"
     # the laws as attitude_law calls them (its callees first), each with the same arguments

@@ -4,9 +4,10 @@ allocation and limits (ZOH at the control rate) → RKMK4 plant sub-steps, with 
 and the per-step states the recorder samples from.
 
 It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the missions the compiled
-engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, no arm,
-noiseless sensors, no disturbances, step attitude references. tests/test_compiled_engine.py
-checks the two engines against each other.
+engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, an arm with
+its law (``arm_laws.arm_torque``) following joint waypoints (``arm_laws.joint_reference``) and its
+joint stops (``stops.stop_step``), noiseless sensors, no disturbances, step attitude references.
+tests/test_compiled_engine.py and tests/test_compiled_arm.py check the two engines against each other.
 """
 
 from __future__ import annotations
@@ -17,13 +18,18 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled.arm_laws import arm_model_terms, arm_torque, joint_reference
 from sms_cli.sim.compiled.attitude_laws import attitude_law, system_momentum, wheel_momentum
 from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
                                           limited_torque, may_reach_limit)
-from sms_cli.sim.compiled.dynamics import (aba_call, frame_poses, joint_transforms, momenta_energy, relative_poses,
-                                           rkmk4_step, workspace, world_placements)
+from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
+                                           momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
+                                           world_placements)
+from sms_cli.sim.compiled.stops import stop_step
 
-RUNNING, SETTLED, NON_FINITE, RATE_LIMIT = 0, 1, 2, 3
+RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED = 0, 1, 2, 3, 4
+# column blocks of the per-tick arm trace ``tr_arm`` (each n_arm wide, then the base motion's 6)
+ARM_ERR, ARM_REF, ARM_RATE_REF, ARM_RATE, ARM_TORQUE, ARM_STOP_TIME, ARM_STOP_PEN, ARM_BLOCKS = 0, 1, 2, 3, 4, 5, 6, 7
 
 
 @njit(**JIT)
@@ -45,6 +51,18 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_
         out[k] = 1.0 / col[wheel_v[k]]
 
 
+_BASE_ANGULAR = np.array([3, 4, 5], dtype=np.int64)
+
+
+@njit(**JIT)
+def system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M, out):
+    """The locked attitude inertia (3×3, base frame, about the system CoM; ``plant_models.effective_inertia``)
+    at the joint transforms (R_rel, p_rel): the Schur complement of H on the base angular block after
+    eliminating the coordinates ``elim`` (base linear, wheels), symmetrised (M: nv×nv scratch)."""
+    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M)
+    arm_model_terms(M, np.zeros(M.shape[0]), _BASE_ANGULAR, elim, out, np.empty(3))
+
+
 @njit(**JIT)
 def run_ticks(
     # tree
@@ -52,25 +70,42 @@ def run_ticks(
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
     # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
-    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, q_ref,
+    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, fd_step, q_ref,
     settle_tol, settle_time,
+    # arm: coordinates, law (arm_laws.arm_torque; code −1: none) with its model's indices (arm_model_terms),
+    # effort limits, the phase's joint reference (arm_laws.joint_reference) and its start time
+    arm_q, arm_v, arm_code, arm_par, arm_wrap, arm_a, arm_p, effort, ref_times, ref_points, ref_step, t_phase0,
+    # joint stops (stops.stop_step): on, table (arm index, v and q indices, limits), restitution; state in/out
+    stop_on, sj_arm, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
     # state, in/out
     q, v, law_mem, eff_inertia, settled_since,
     # outputs per control tick
-    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy,
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm,
     # outputs per plant step (state after the step and the wheel torque applied during it)
     st_t, st_q, st_v, st_tw,
+    # joint-stop events (stops.py rows) and their count
+    ev, ev_n,
 ):
     """Advance up to ``n_ticks`` control periods from time t0; returns (ticks, steps, status).
 
     status: RUNNING (all ticks done), SETTLED (the phase's until_settled condition ended it),
-    NON_FINITE or RATE_LIMIT (divergence: the state at the last completed tick is in q, v).
+    NON_FINITE or RATE_LIMIT (divergence: the state at the last completed tick is in q, v),
+    STOP_FAILED (a joint-stop complementarity problem did not terminate).
+
+    The arm (n_arm joints): the law's torque on the tick's joint reference, clipped to the effort
+    limits (a clipped joint counts as saturated), with M* and h* from ``mass_matrix`` and
+    ``bias_forces`` for the laws that use the model; ``tr_arm`` gets per tick the blocks ARM_* (the
+    joint error q_d − q, q_d, q̇_d, q̇, the joint torque, the time on stop and the largest penetration
+    over the tick's steps) and the base motion ([base origin; base-body momentum], world;
+    ``base_motion.base_kinematics``).
 
     The law sees step references (ω_r = ω̇_r = 0), the constant inertia J_law with J̇ = 0 and the
     internal momentum h from the wheels (body_code 0: G_law, Js_law, ``RigidBody``) or from the
-    system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``)."""
+    system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``), or the online
+    inertia (body_code 2: ``SystemBody(online=True)``): J(q) the locked inertia (``system_inertia``) and
+    J̇ its central difference along v with the step fd_step, h as for body_code 1."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
@@ -94,6 +129,26 @@ def run_ticks(
     R_rel = np.empty((n, 3, 3))
     p_rel = np.empty((n, 3))
     me = np.empty(10)
+    n_arm = arm_q.shape[0]
+    ns = sj_v.shape[0]
+    ref_q, ref_qd, ref_qdd = np.empty(n_arm), np.empty(n_arm), np.empty(n_arm)
+    q_arm, qd_arm, tau_m = np.empty(n_arm), np.empty(n_arm), np.zeros(n_arm)
+    na_model = arm_a.shape[0]
+    M_full, n_full = np.empty((nv, nv)), np.empty(nv)
+    Mstar, hstar = np.empty((na_model, na_model)), np.empty(na_model)
+    model_law = arm_code == 2 or arm_code == 3  # arm_laws.MODEL_LAWS
+    on_time, pen_max = np.zeros(ns), np.zeros(ns)
+    Rb = np.empty((3, 3))
+    # online inertia (body_code 2): the coordinates eliminated from the locked inertia (base linear, wheels)
+    elim = np.empty(3 + nw, dtype=np.int64)
+    for a in range(3):
+        elim[a] = a
+    for i in range(nw):
+        elim[3 + i] = wheel_v[i]
+    J_on, Jd_on, J_pm = np.empty((3, 3)), np.empty((3, 3)), np.empty((2, 3, 3))
+    dq, q_fd = np.empty(nv), np.empty(nq)
+    R_fd, p_fd = np.empty((n, 3, 3)), np.empty((n, 3))
+    tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
     t = t0
     steps = 0
     for k in range(n_ticks):
@@ -110,15 +165,68 @@ def run_ticks(
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
         if law_on:
             error_quaternion(q[3:7], q_ref, qe)
-            if body_code == 1:
-                system_momentum(q[3:7], me[3:6], J_law, omega, h)
+            if body_code == 2:  # SystemBody.inertia, inertia_rate
+                system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
+                for a in range(nv):
+                    dq[a] = fd_step * v[a]
+                for sgn in range(2):
+                    integrate(kind, axis, idx_q, idx_v, q, dq, q_fd)
+                    joint_transforms(kind, axis, place_R, place_p, idx_q, q_fd, R_fd, p_fd)
+                    system_inertia(parent, kind, axis, inertia, armature, idx_v, R_fd, p_fd, elim, M_full, J_pm[sgn])
+                    for a in range(nv):
+                        dq[a] = -fd_step * v[a]
+                for a in range(3):
+                    for b in range(3):
+                        Jd_on[a, b] = (J_pm[0, a, b] - J_pm[1, a, b]) / (2.0 * fd_step)
+            if body_code >= 1:
+                system_momentum(q[3:7], me[3:6], J_on if body_code == 2 else J_law, omega, h)
             else:
                 wheel_momentum(G_law, Js_law, omega, ws, h)
-            attitude_law(law_code, qe, omega, zero3, zero3, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
+            if body_code == 2:
+                attitude_law(law_code, qe, omega, zero3, zero3, ws, J_on, Jd_on, h, G_law, Js_law, law_par, law_mem, t, T)
+            else:
+                attitude_law(law_code, qe, omega, zero3, zero3, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
             if thrusters:
                 sat = clip_attitude_torque(T, torque_limit)
             else:
                 sat = allocate_and_clip(T, ws, A_pinv, null, spin, null_gain, target_speed, max_torque, tau_w)
+        # arm: reference, law, effort limits
+        if n_arm:
+            joint_reference(ref_times, ref_points, ref_step, t - t_phase0, ref_q, ref_qd, ref_qdd)
+            for i in range(n_arm):
+                q_arm[i] = q[arm_q[i]]
+                qd_arm[i] = v[arm_v[i]]
+                tau_m[i] = 0.0
+            if arm_code >= 0:
+                if model_law:
+                    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
+                    bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, n_full)
+                    arm_model_terms(M_full, n_full, arm_a, arm_p, Mstar, hstar)
+                arm_torque(arm_code, arm_par, arm_wrap, ref_q, ref_qd, ref_qdd, q_arm, qd_arm, Mstar, hstar, tau_m)
+                for i in range(n_arm):  # actuators.clip_joint_torque
+                    lim = effort[i]
+                    if abs(tau_m[i]) > lim * (1 + 1e-12):
+                        sat = True
+                    tau_m[i] = min(max(tau_m[i], -lim), lim)
+            for i in range(n_arm):
+                tr_arm[k, ARM_ERR * n_arm + i] = ref_q[i] - q_arm[i]
+                tr_arm[k, ARM_REF * n_arm + i] = ref_q[i]
+                tr_arm[k, ARM_RATE_REF * n_arm + i] = ref_qd[i]
+                tr_arm[k, ARM_RATE * n_arm + i] = qd_arm[i]
+                tr_arm[k, ARM_TORQUE * n_arm + i] = tau_m[i]
+                tr_arm[k, ARM_STOP_TIME * n_arm + i] = 0.0
+            for j in range(ns):  # at the tick's state; with stops: the largest over its steps (below)
+                x = q[sj_q[j]]
+                tr_arm[k, ARM_STOP_PEN * n_arm + sj_arm[j]] = max(0.0, max(x - sj_upper[j], sj_lower[j] - x))
+            # base motion (base_motion.base_kinematics): base origin, m_0 R (v + ω × c)
+            quat_to_matrix(q[3], q[4], q[5], q[6], Rb)
+            vc0 = v[0] + v[4] * com[0, 2] - v[5] * com[0, 1]
+            vc1 = v[1] + v[5] * com[0, 0] - v[3] * com[0, 2]
+            vc2 = v[2] + v[3] * com[0, 1] - v[4] * com[0, 0]
+            o = ARM_BLOCKS * n_arm
+            for a in range(3):
+                tr_arm[k, o + a] = q[a]
+                tr_arm[k, o + 3 + a] = mass[0] * (Rb[a, 0] * vc0 + Rb[a, 1] * vc1 + Rb[a, 2] * vc2)
         # trace (state at the tick)
         tr_t[k] = t
         tr_err[k] = error_angle(q[3:7], q_ref)
@@ -144,6 +252,11 @@ def run_ticks(
         for i in range(nw):
             tau[wheel_v[i]] = tau_w[i]
             tau_applied[i] = tau_w[i]
+        for i in range(n_arm):
+            tau[arm_v[i]] = tau_m[i]
+        for j in range(ns):
+            on_time[j] = 0.0
+            pen_max[j] = 0.0
         for _ in range(n_sub):
             if live:
                 for i in range(nw):
@@ -151,8 +264,13 @@ def run_ticks(
                 limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
-            rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, no_e, no_e,
-                       no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work)
+            if stop_on:
+                if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
+                                 tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work):
+                    return k + 1, steps, STOP_FAILED
+            else:
+                rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, no_e,
+                           no_e, no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work)
             t += dt
             st_t[steps] = t
             for a in range(nq):  # element loops, not slice assignment: no broadcast check to compile
@@ -164,6 +282,10 @@ def run_ticks(
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
             steps += 1
+        if stop_on:
+            for j in range(ns):
+                tr_arm[k, ARM_STOP_TIME * n_arm + sj_arm[j]] = on_time[j]
+                tr_arm[k, ARM_STOP_PEN * n_arm + sj_arm[j]] = pen_max[j]
         vmax = 0.0
         finite = True
         for a in range(nv):

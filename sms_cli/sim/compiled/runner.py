@@ -32,27 +32,23 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     checks = [
         (sm.n_modes > 0, "the model has flexible modes"),
         (bool(sm.springs), "the model has spring joints"),
-        (bool(sm.arm), "the model has an arm"),
-        (spec.ndi is not None or spec.arm is not None or spec.resolved_rate is not None,
-         "the mission uses an arm law, NDI or resolved-rate control"),
+        (spec.ndi is not None or spec.resolved_rate is not None, "the mission uses NDI or resolved-rate control"),
         (att_spec is not None and not isinstance(att_spec, _compiled_laws()),
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
-        (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0) for n in (spec.sensors.gyro, spec.sensors.attitude)),
-         "the sensors are noisy"),
+        (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
+             for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
         (bool(spec.disturbances), "the mission has disturbances"),
         (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
          "the mission has real thrusters (thrusters:), which the Python loop models"),
         (any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed"),
         (any(p.attitude_profile != "step" for p in spec.phases), "a phase has a smooth attitude profile"),
-        (any(p.attach or p.detach or p.waypoints or p.end_effector is not None for p in spec.phases),
-         "a phase attaches or releases a payload or moves the arm"),
+        (any(p.attach or p.detach for p in spec.phases), "a phase attaches or releases a payload"),
+        (any(p.end_effector is not None for p in spec.phases), "a phase tracks an end-effector target"),
     ]
     for bad, why in checks:
         if bad:
             return why
     why = tree_reason(sm.model)
-    if why is None and getattr(att_spec, "inertia", None) == "online" and not _inertia_is_constant(sm):
-        why = "the attitude law's online inertia varies with the wheel angles (rotors not symmetric about their axes)"
     return why
 
 
@@ -66,36 +62,17 @@ def _compiled_laws():
 COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping")
 
 
-def _inertia_is_constant(sm: SystemModel) -> bool:
-    """Whether the locked inertia J(q) of an arm-less rigid model is the same at other wheel angles (the
-    only coordinates it can depend on: base velocities are in the base frame), so that the compiled loop
-    may use J(q0) and J̇ = 0 for an ``online`` inertia: true when every rotor is symmetric about its axis
-    (the declared wheels always are)."""
-    from sms_cli.sim.laws.plant_models import effective_inertia
-
-    import pinocchio as pin
-
-    J0 = effective_inertia(sm, sm.q0)
-    for angle in (0.7, 2.1):
-        turn = np.zeros(sm.nv)
-        for w in sm.wheels:
-            turn[w.v_index] = angle + w.v_index
-        q = pin.integrate(sm.model, sm.q0, turn)
-        if np.abs(effective_inertia(sm, q) - J0).max() > 1e-12 * max(1.0, np.abs(J0).max()):
-            return False
-    return True
-
-
 class CompiledSimulation:
     """One mission simulation by the compiled loop (see the module docstring)."""
 
     def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder, progress, att_law,
-                 chunk_steps: int = CHUNK_STEPS):
+                 chunk_steps: int = CHUNK_STEPS, arm_law=None):
         from sms_cli.sim.actuators import WheelArray
         from sms_cli.sim.engine import Progress
 
         self.sm, self.spec, self.rec = sm, spec, recorder
         self.law = att_law
+        self.arm_law = arm_law
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
@@ -111,9 +88,10 @@ class CompiledSimulation:
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.kinematics(qs, vs)
 
-    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None) -> None:
+    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks (``wrench``: the
-        thrusters' wrench on the base per step, for ``/base/wrench``)."""
+        thrusters' wrench on the base per step, for ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's
+        torques and joint reference per step)."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
@@ -121,15 +99,18 @@ class CompiledSimulation:
         n = idx.size
         refs = np.broadcast_to(ref_quat, (n, 4))
         err = attitude_error(refs, qs[:, 3:7]) if err_vec is None else err_vec
-        none = np.zeros((n, 0))  # no modes, no arm
-        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], none, refs, none, err,
+        none = np.zeros((n, 0))  # no modes
+        n_arm = len(self.sm.arm)
+        tau_m = np.zeros((n, n_arm)) if tau_m is None else tau_m[idx]
+        joint_ref = np.zeros((n, n_arm)) if joint_ref is None else joint_ref[idx]
+        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err,
                           wrench=None if wrench is None else wrench[idx])
 
     def _law_args(self):
-        """run_ticks's law arguments: (code, parameters, J, G, Js, body code), from the law object (its
+        """run_ticks's law arguments: (code, parameters, J, G, Js, body code, J̇ step), from the law object (its
         ``code``, ``par``) and its body model: a ``RigidBody``'s constant J and wheels (body code 0), a
-        ``SystemBody``'s inertia at q0 (constant on the models the compiled loop runs; ``online``: see
-        ``_inertia_is_constant``) with h from the system's momentum (body code 1), or none."""
+        ``SystemBody``'s inertia at q0 with h from the system's momentum (body code 1), or its online J(q)
+        and J̇ by the same central difference (body code 2), or none."""
         from sms_cli.sim.compiled.kernels import NO_LAW
         from sms_cli.sim.laws.plant_models import SystemBody
 
@@ -137,19 +118,65 @@ class CompiledSimulation:
         if law is None:
             return NO_LAW
         b = law.body
-        _, _, J, G, Js, body_code = NO_LAW
+        _, _, J, G, Js, body_code, step = NO_LAW
         if isinstance(b, SystemBody):
-            J, body_code = b.initial_inertia, 1
+            J, body_code = b.initial_inertia, 2 if b.online else 1
+            step = float(b.h)
         elif b is not None:
             J, G, Js = b.J, b.G, b.Js
         f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
-        return int(law.code), f(law.par), f(J), f(G), f(Js), body_code
+        return int(law.code), f(law.par), f(J), f(G), f(Js), body_code, step
+
+    def _arm_args(self):
+        """run_ticks's arm arguments: coordinates, law (its ``code``, parameter rows, wrap mask; −1: none),
+        the model's (arm, free) indices for the laws with a model, the effort limits."""
+        sm = self.sm
+        n = len(sm.arm)
+        i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+        arm_q, arm_v = i64([a.q_index for a in sm.arm]), i64([a.v_index for a in sm.arm])
+        law = self.arm_law
+        code, par, wrap = -1, np.zeros((6, n)), np.zeros(n, dtype=np.bool_)
+        a_idx, p_idx = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        if law is not None and n:
+            code, par, wrap = int(law.code), np.ascontiguousarray(law._params(n)), law.wrap_mask(n)
+            if law.dyn is not None:
+                a_idx, p_idx = law.dyn.indices
+        effort = np.array([a.max_effort for a in sm.arm], dtype=float)
+        return arm_q, arm_v, code, par, wrap, a_idx, p_idx, effort
+
+    def _stop_args(self):
+        """run_ticks's joint-stop arguments: on, the table's arrays, restitution, and the state arrays."""
+        from sms_cli.dynamics.joint_stops import stop_table
+
+        T = self.stop_table = stop_table(self.sm)
+        on = bool(self.spec.joint_stops.enabled and T.n > 0)
+        i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+        return (on, i64(T.arm_index), i64(T.v_index), i64(T.q_index), T.lower.astype(float), T.upper.astype(float),
+                float(self.spec.joint_stops.restitution), np.zeros(T.n, dtype=np.int64), np.zeros(T.n, dtype=np.bool_),
+                np.zeros(T.n))
+
+    def _write_events(self, ev: np.ndarray) -> None:
+        """The joint-stop events (stops.py rows) as ``JointStops`` writes them to /events."""
+        from sms_cli.sim.compiled.stops import EV_ARRIVAL, UPPER
+
+        T = self.stop_table
+        for row in ev:
+            j = int(row[2])
+            side = "upper" if int(row[3]) == UPPER else "lower"
+            if int(row[1]) == EV_ARRIVAL:
+                self.rec.write_event(float(row[0]), "joint_stop", {
+                    "joint": T.names[j], "side": side, "limit": float(row[4]), "rate": float(row[5]),
+                    "rate_after": float(row[6]), "penetration": float(row[7]), "impulse": float(row[8])})
+            else:
+                self.rec.write_event(float(row[0]), "joint_stop_release", {
+                    "joint": T.names[j], "side": side, "time_on_stop_s": float(row[9])})
 
     # ------------------------------------------------------------------ main loop
     def run(self):
-        from sms_cli.sim.compiled.loop import NON_FINITE, RATE_LIMIT, SETTLED, run_ticks
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED, run_ticks
+        from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.engine import build_result, phase_event
-        from sms_cli.sim.references import AttitudeProfile
+        from sms_cli.sim.references import AttitudeProfile, JointProfile
 
         sm, spec, wh = self.sm, self.spec, self.wheels
         q, v = sm.q0.astype(float).copy(), sm.v0.astype(float).copy()
@@ -162,6 +189,11 @@ class CompiledSimulation:
                       float(spec.allocation.null_space_gain), float(spec.allocation.target_speed),
                       wh.max_torque.astype(float), wh.max_speed.astype(float), float(fr.coulomb), float(fr.viscous))
         law_args = self._law_args()
+        arm_args = self._arm_args()
+        stop_args = self._stop_args()
+        n_arm, ns, stop_on = len(sm.arm), self.stop_table.n, stop_args[0]
+        arm_q, arm_v = arm_args[0], arm_args[1]
+        q_arm_ref = q[arm_q].copy()
         q_att_ref = q[3:7].copy()
         t, steps = 0.0, 0
         status, why = "completed", ""
@@ -170,7 +202,7 @@ class CompiledSimulation:
         last_T = np.zeros(3)
         if self.rec is not None:  # the initial state is part of the recording
             self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
-                         np.zeros((1, 6)) if self.record_wrench else None)
+                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None])
         wall0 = time.perf_counter()
         try:
             for ip, phase in enumerate(spec.phases):
@@ -183,6 +215,8 @@ class CompiledSimulation:
                 torque_limit = np.inf if spec.attitude_torque_limit is None else float(spec.attitude_torque_limit)
                 settle_tol = float(phase.until_settled) if phase.until_settled is not None else -1.0
                 settled = np.array([np.nan])
+                joints = JointProfile(q_arm_ref, [a.name for a in sm.arm], phase.waypoints, phase.joint_profile)
+                ref_times, ref_points = joints.arrays
                 n_ticks = int(round(phase.duration * spec.control_rate))
                 tick0 = 0
                 while tick0 < n_ticks:
@@ -190,13 +224,17 @@ class CompiledSimulation:
                     ms = m * self.n_sub
                     tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
                           "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
-                          "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m)}
+                          "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m),
+                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6))}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
+                    ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
                     ticks, n_steps, code = run_ticks(
                         *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, q_ref, settle_tol,
-                        float(phase.settle_time), t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
+                        float(phase.settle_time), *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
+                        t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
-                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], st_t, st_q, st_v, st_tw)
+                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], st_t, st_q, st_v, st_tw,
+                        ev, ev_n)
                     piece = {k: a[:ticks] for k, a in tr.items()}
                     piece["phase"] = np.full(ticks, ip)
                     pieces.append(piece)
@@ -211,19 +249,24 @@ class CompiledSimulation:
                                 wrench = np.zeros((n_steps, 6))
                                 if law_on and thrusters:
                                     wrench[:, 3:6] = np.repeat(piece["base_torque"], self.n_sub, axis=0)[:n_steps]
-                            self._record(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref,
-                                         wrench=wrench)
+                            held = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
+                                                           self.n_sub, axis=0)[:n_steps]
+                            self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref,
+                                               wrench, held(4), held(1), ev[:ev_n[0]])
                     self.progress.update(t)
                     if code == NON_FINITE:
                         raise _Stop("the state became non-finite")
                     if code == RATE_LIMIT:
                         vmax = float(np.max(np.abs(v)))
                         raise _Stop(f"a generalized velocity reached {vmax:.4g} (limit {spec.divergence.max_rate:g})")
+                    if code == STOP_FAILED:
+                        raise RuntimeError("joint stops: the complementarity pivoting did not terminate")
                     if code == SETTLED:
                         break
                     tick0 += ticks
                 spans.append((ip, t_phase0, t))
                 q_att_ref = q_ref if phase.attitude is not None else q_att_ref
+                q_arm_ref = joints.final
         except _Stop as exc:
             status, why = "diverged", str(exc)
             if self.rec is not None:
@@ -243,12 +286,49 @@ class CompiledSimulation:
                            "wheel_speed": v[wheel_v][None], "wheel_torque": filled[-1]["wheel_torque"][-1:],
                            "saturated": np.array([False]), "base_torque": last_T[None],
                            "momentum": np.concatenate([mom[0, 0:3], mom[0, 6:9]])[None], "energy": mom[0, 9:10],
-                           "phase": np.array([len(spec.phases) - 1])})
-        trace = self._trace_arrays(pieces, nw)
+                           "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled)})
+        trace = self._trace_arrays(pieces, nw, n_arm)
         return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
 
+    def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events) -> None:
+        """``_record`` of a slice's steps with its joint-stop events in time order (an event before the
+        samples at and after its time)."""
+        start = 0
+        for row in events:
+            stop = int(np.searchsorted(times, row[0], side="left"))
+            if stop > start:
+                sl = slice(start, stop)
+                self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
+                             tau_m=tau_m[sl], joint_ref=joint_ref[sl])
+                start = stop
+            self._write_events(row[None])
+        if start < times.size:
+            sl = slice(start, None)
+            self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl])
+
+    def _final_arm_row(self, q, v, q_arm_ref, filled) -> np.ndarray:
+        """The arm trace row of the final state (the Python loop's last ``_trace``): error to the last
+        phase's final reference, the last torque, q̇_d = 0, no time on stop."""
+        from sms_cli.dynamics.joint_stops import arm_penetration
+        from sms_cli.sim.base_motion import base_kinematics
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS
+
+        sm = self.sm
+        n = len(sm.arm)
+        row = np.zeros((1, ARM_BLOCKS * n + 6))
+        if n:
+            q_arm = q[[a.q_index for a in sm.arm]]
+            row[0, 0:n] = q_arm_ref - q_arm
+            row[0, n:2 * n] = q_arm_ref
+            row[0, 3 * n:4 * n] = v[sm.idx.arm]
+            row[0, 4 * n:5 * n] = filled[-1]["arm"][-1, 4 * n:5 * n]
+            row[0, 6 * n:7 * n] = arm_penetration(self.stop_table, n, q)
+            row[0, 7 * n:] = base_kinematics(sm, q, v)
+        return row
+
     @staticmethod
-    def _trace_arrays(pieces: list[dict], nw: int) -> dict[str, np.ndarray]:
+    def _trace_arrays(pieces: list[dict], nw: int, n_arm: int = 0) -> dict[str, np.ndarray]:
         """The Trace.arrays() dict of the Python engine, from the loop's slices."""
         def cat(key, width=None):
             parts = [p[key] for p in pieces if key in p]
@@ -262,9 +342,14 @@ class CompiledSimulation:
         a["saturated"] = cat("saturated").astype(bool)
         a["base_torque"], a["momentum"] = cat("base_torque", 3), cat("momentum", 6)
         n = a["t"].size
-        a.update({"joint_err": np.zeros((n, 0)), "ee_err": np.full(n, np.nan), "joint_torque": np.zeros((n, 0)),
-                  "modal_peak": np.zeros(n), "base_reaction": np.full((n, 6), np.nan), "segment": np.zeros(n, dtype=int),
-                  "joint_stop_time": np.zeros((n, 0)), "joint_stop_penetration": np.zeros((n, 0))})  # no arm
+        a.update({"ee_err": np.full(n, np.nan), "modal_peak": np.zeros(n), "base_reaction": np.full((n, 6), np.nan),
+                  "segment": np.zeros(n, dtype=int)})
+        arm = cat("arm", 7 * n_arm + 6)
+        block = lambda b: arm[:, b * n_arm:(b + 1) * n_arm]  # noqa: E731  (loop.ARM_* blocks)
+        a.update({"joint_err": block(0), "joint_torque": block(4), "joint_stop_time": block(5),
+                  "joint_stop_penetration": block(6)})
+        if n_arm and n:
+            a.update({"joint_rate_ref": block(2), "joint_rate": block(3), "base_motion": arm[:, 7 * n_arm:]})
         return a
 
 

@@ -154,22 +154,40 @@ class ArmDynamics:
             self.p = np.setdiff1d(others, held)
 
     def terms(self, s: Sensed) -> tuple[np.ndarray, np.ndarray]:
-        """(M* (n_m×n_m), h* (n_m)) at the sensed state."""
+        """(M* (n_m×n_m), h* (n_m)) at the sensed state: Pinocchio's mass matrix and bias forces reduced by
+        the kernel the compiled loop uses too (``sms_cli.sim.compiled.arm_laws.arm_model_terms``)."""
         sm = self.sm
-        a = self.a
         if self.model == "fixed_base":
             M = sm.rigid_mass_matrix(s.q)
             n = pin.nonLinearEffects(sm.model, sm.data, s.q, s.v)
             if sm.springs:
                 n = n - sm.internal_forces(s.q, s.v, np.zeros(sm.n_modes), np.zeros(sm.n_modes))[: sm.nv]
-            return M[np.ix_(a, a)], n[a]
-        eta = s.eta if s.eta.size == sm.n_modes else np.zeros(sm.n_modes)
-        etadot = s.etadot if s.etadot.size == sm.n_modes else np.zeros(sm.n_modes)
-        M = sm.mass_matrix(s.q)
-        n = sm.bias_forces(s.q, s.v, etadot) - sm.internal_forces(s.q, s.v, eta, etadot)
-        p = self.p
-        Map = M[np.ix_(a, p)]
-        X = np.linalg.solve(M[np.ix_(p, p)], np.column_stack([M[np.ix_(p, a)], n[p]]))
-        Mstar = M[np.ix_(a, a)] - Map @ X[:, :-1]
-        hstar = n[a] - Map @ X[:, -1]
-        return 0.5 * (Mstar + Mstar.T), hstar
+        else:
+            eta = s.eta if s.eta.size == sm.n_modes else np.zeros(sm.n_modes)
+            etadot = s.etadot if s.etadot.size == sm.n_modes else np.zeros(sm.n_modes)
+            M = sm.mass_matrix(s.q)
+            n = sm.bias_forces(s.q, s.v, etadot) - sm.internal_forces(s.q, s.v, eta, etadot)
+        return self.reduce(M, n)
+
+    @property
+    def indices(self) -> tuple[np.ndarray, np.ndarray]:
+        """(arm coordinates a, free coordinates p) as the kernel takes them (int64)."""
+        return np.ascontiguousarray(self.a, dtype=np.int64), np.ascontiguousarray(self.p, dtype=np.int64)
+
+    def reduce(self, M: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(M*, h*) from the full mass matrix M and bias n (``arm_model_terms``)."""
+        from sms_cli.sim.compiled.arm_laws import arm_model_terms
+
+        a, p = self.indices
+        Ms, hs = np.empty((a.size, a.size)), np.empty(a.size)
+        arm_model_terms(np.ascontiguousarray(M, dtype=float), np.ascontiguousarray(n, dtype=float), a, p, Ms, hs)
+        return Ms, hs
+
+    def warm_call(self):
+        """``reduce``'s kernel call on throw-away data (``sms_cli.sim.compiled.warmup``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        a, p = self.indices
+        nx = self.sm.nx
+        return KernelCall("sms_cli.sim.compiled.arm_laws:arm_model_terms",
+                          (np.eye(nx), np.zeros(nx), a, p, np.empty((a.size, a.size)), np.empty(a.size)), cost=0.5)
