@@ -8,6 +8,7 @@ slices along each sampled joint (min / mean / max per joint-value bin), and a pl
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from sms_cli.analysis.indices import HIGHER_IS_BETTER
 
@@ -88,16 +89,11 @@ class StudyStats:
         self.sum += np.where(finite, X, 0.0).sum(axis=0)
         self.res.add(X)
         self.plot.add(np.column_stack([X, samples]))
-        # Slices: ufunc.at on flat indices (bin × column), NumPy's fast path (10× the row-indexed call on
-        # 2-D arrays); the same sequential per-cell accumulation, so the same values to the bit.
-        Xsum, Xcnt = np.where(finite, X, 0.0).ravel(), finite.astype(np.int64).ravel()
-        cols = np.arange(X.shape[1])
+        # Slices: per row in order, per column, the cell's running min / max / sum / count (compiled; the
+        # same sequential per-cell accumulation as np.minimum.at & co., so the same values to the bit).
         for j, (_, inner) in enumerate(self.edges):
-            cell = (np.searchsorted(inner, samples[:, j])[:, None] * X.shape[1] + cols).ravel()
-            np.minimum.at(self.s_min[j].reshape(-1), cell, Xmin.ravel())
-            np.maximum.at(self.s_max[j].reshape(-1), cell, Xmax.ravel())
-            np.add.at(self.s_sum[j].reshape(-1), cell, Xsum)
-            np.add.at(self.s_cnt[j].reshape(-1), cell, Xcnt)
+            _slice_add(np.searchsorted(inner, samples[:, j]), X, finite, self.s_min[j], self.s_max[j], self.s_sum[j],
+                       self.s_cnt[j])
         if self.best_k:
             self._update_top(samples, X, finite, first_index)
 
@@ -157,6 +153,26 @@ class StudyStats:
             mx = np.where(np.isfinite(self.s_max[j]), self.s_max[j], np.nan)
             out.append({"joint": self.joints[j], "x": centres, "min": mn, "mean": mean, "max": mx})
         return out
+
+
+@njit(cache=True, nogil=True)
+def _slice_add(bins, X, finite, s_min, s_max, s_sum, s_cnt):
+    """Add rows X (k × n) to the slice cells (bin × column) of their bins: min / max / sum / count of
+    the finite values (as np.minimum.at(s_min, cell, x) etc. row by row: minimum keeps the cell when it
+    is below the value, else takes the value)."""
+    for r in range(X.shape[0]):
+        b = bins[r]
+        for c in range(X.shape[1]):
+            if finite[r, c]:
+                x = X[r, c]
+                if not s_min[b, c] < x:
+                    s_min[b, c] = x
+                if not s_max[b, c] > x:
+                    s_max[b, c] = x
+                s_sum[b, c] += x
+                s_cnt[b, c] += 1
+            else:
+                s_sum[b, c] += 0.0  # a non-finite value adds 0 to the sum (-0.0 becomes +0.0, as before)
 
 
 class Comparison:
