@@ -24,21 +24,34 @@ class Reservoir:
         self.seen = 0
         self.rng = np.random.default_rng(seed)
 
-    def add(self, rows: np.ndarray) -> None:
+    def add(self, rows: np.ndarray, *more: np.ndarray) -> None:
+        """Add a block of rows; ``more``: further columns of the same rows (appended after ``rows``'s)."""
         k = len(rows)
         free = max(0, min(self.size - self.seen, k))
+        parts = [np.ascontiguousarray(p, dtype=float) for p in (rows,) + more]
         if free:
-            self.data[self.seen:self.seen + free] = rows[:free]
+            self.data[self.seen:self.seen + free] = np.column_stack([p[:free] for p in parts])
         if free < k:
             idx = np.arange(self.seen + free, self.seen + k)  # global indices of the rest
             j = (self.rng.random(len(idx)) * (idx + 1)).astype(np.int64)
-            keep = j < self.size
-            self.data[j[keep]] = rows[free:][keep]
+            col = 0
+            for p in parts:  # row free + i replaces row j[i] when j[i] < size, in order (the last one stays)
+                _replace_rows(self.data, col, p, free, j)
+                col += p.shape[1]
         self.seen += k
 
     @property
     def rows(self) -> np.ndarray:
         return self.data[: min(self.seen, self.size)]
+
+
+@njit(cache=True, nogil=True)
+def _replace_rows(data, col, rows, first, j):
+    """data[j[i], col:col + rows.shape[1]] = rows[first + i] for each i in order where j[i] < len(data)."""
+    for i in range(j.shape[0]):
+        if j[i] < data.shape[0]:
+            for c in range(rows.shape[1]):
+                data[j[i], col + c] = rows[first + i, c]
 
 
 class StudyStats:
@@ -88,7 +101,7 @@ class StudyStats:
         self.max = np.maximum(self.max, Xmax.max(axis=0))
         self.sum += np.where(finite, X, 0.0).sum(axis=0)
         self.res.add(X)
-        self.plot.add(np.column_stack([X, samples]))
+        self.plot.add(X, samples)
         # Slices: per row in order, per column, the cell's running min / max / sum / count (compiled; the
         # same sequential per-cell accumulation as np.minimum.at & co., so the same values to the bit).
         for j, (_, inner) in enumerate(self.edges):
