@@ -171,8 +171,9 @@ class StudyStats:
 @njit(cache=True, nogil=True)
 def _slice_add(bins, X, finite, s_min, s_max, s_sum, s_cnt):
     """Add rows X (k × n) to the slice cells (bin × column) of their bins: min / max / sum / count of
-    the finite values (as np.minimum.at(s_min, cell, x) etc. row by row: minimum keeps the cell when it
-    is below the value, else takes the value)."""
+    the finite values, as np.minimum.at(s_min, cell, x) etc. row by row (minimum keeps the cell when it
+    is below the value, else takes the value; a non-finite value leaves the cell, the sums starting at
+    +0.0 stay unchanged by the 0 that ufunc.at added)."""
     for r in range(X.shape[0]):
         b = bins[r]
         for c in range(X.shape[1]):
@@ -184,8 +185,6 @@ def _slice_add(bins, X, finite, s_min, s_max, s_sum, s_cnt):
                     s_max[b, c] = x
                 s_sum[b, c] += x
                 s_cnt[b, c] += 1
-            else:
-                s_sum[b, c] += 0.0  # a non-finite value adds 0 to the sum (-0.0 becomes +0.0, as before)
 
 
 class Comparison:
