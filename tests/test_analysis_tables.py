@@ -184,3 +184,22 @@ def test_an_evaluation_error_reaches_the_command_and_writes_no_table(tmp_path, m
     with pytest.raises(FloatingPointError, match="block 3"):
         sms.analyze(mission, out=out)
     assert sorted(p.name for p in out.iterdir()) == [".sms.lock"]
+
+
+def test_a_parquet_write_error_reaches_the_command(tmp_path, monkeypatch):
+    """Row groups are written on a background thread (table.ParquetTable): a write error is raised by
+    the command, and no table appears."""
+    import pyarrow.parquet as pq
+
+    import sms_cli as sms
+
+    mission = study(tmp_path)
+
+    def fail(self, *a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", fail)
+    out = tmp_path / "out"
+    with pytest.raises(OSError, match="disk full"):
+        sms.analyze(mission, out=out)
+    assert sorted(p.name for p in out.iterdir()) == [".sms.lock"]
