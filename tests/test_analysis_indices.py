@@ -277,3 +277,20 @@ def test_threads_do_not_change_results(pulsar, monkeypatch):
     for c in runs[0]:
         assert runs[0][c].tobytes() == runs[1][c].tobytes(), c
         assert runs[0][c].tobytes() == np.concatenate([p[c] for p in pieces]).tobytes(), c
+
+
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_fixed_base_manipulability_equals_pinocchio_jacobian(pulsar, task):
+    """mu_fixed and gjm's fixed-base counterpart: μ of the arm columns of Pinocchio's LOCAL frame Jacobian
+    (its task rows; the rotation to R_sat is orthogonal, so μ does not change), by a dense SVD."""
+    spec = AnalysisSpec.model_validate({"sampling": {"method": "sobol", "n": 64}, "task": task})
+    sampler, sampled = make_sampler(pulsar, spec)
+    kernel = build_variants(pulsar, spec, sampled)[0].kernel
+    samples = np.vstack(list(sampler.chunks()))
+    got = kernel.evaluate(samples)["mu_fixed"]
+    Q = kernel.configurations(samples)
+    rows = slice(0, 3) if task == "position" else slice(0, 6)
+    for k, q in enumerate(Q):
+        J = pin.computeFrameJacobian(kernel.model, kernel.data, q, kernel.fid, pin.ReferenceFrame.LOCAL)[rows][:, kernel.L.v_arm]
+        s = np.linalg.svd(J, compute_uv=False)
+        assert got[k] == pytest.approx(np.prod(s[:min(J.shape)]), rel=1e-9, abs=1e-14)
