@@ -260,3 +260,37 @@ def test_missing_limits_skip_groups_with_a_fix(demeter):
     k = IndexKernel(demeter.model, demeter.ee_frame_id, demeter.q0, variants[0].kernel.L, spec.groups())
     assert "dynamic_manipulability" not in k.groups
     assert "joint_torque" in k.L.skipped["dynamic_manipulability"]
+
+
+def test_threads_do_not_change_results(pulsar, monkeypatch):
+    """A block's parts run on threads (SMS_ANALYSIS_THREADS): the values are the same bits with 1 and 3
+    threads, and with the block cut in pieces (each sample is computed on its own)."""
+    spec = AnalysisSpec.model_validate({"sampling": {"method": "sobol", "n": 1500}, "task": "pose"})
+    sampler, sampled = make_sampler(pulsar, spec)
+    variants = build_variants(pulsar, spec, sampled)
+    samples = np.vstack(list(sampler.chunks()))
+    runs = []
+    for threads in ("1", "3"):
+        monkeypatch.setenv("SMS_ANALYSIS_THREADS", threads)
+        runs.append(evaluate_block(variants, samples)[1][0])
+    pieces = [evaluate_block(variants, samples[a:a + 700])[1][0] for a in range(0, 1500, 700)]
+    for c in runs[0]:
+        assert runs[0][c].tobytes() == runs[1][c].tobytes(), c
+        assert runs[0][c].tobytes() == np.concatenate([p[c] for p in pieces]).tobytes(), c
+
+
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_fixed_base_manipulability_equals_pinocchio_jacobian(pulsar, task):
+    """mu_fixed and gjm's fixed-base counterpart: μ of the arm columns of Pinocchio's LOCAL frame Jacobian
+    (its task rows; the rotation to R_sat is orthogonal, so μ does not change), by a dense SVD."""
+    spec = AnalysisSpec.model_validate({"sampling": {"method": "sobol", "n": 64}, "task": task})
+    sampler, sampled = make_sampler(pulsar, spec)
+    kernel = build_variants(pulsar, spec, sampled)[0].kernel
+    samples = np.vstack(list(sampler.chunks()))
+    got = kernel.evaluate(samples)["mu_fixed"]
+    Q = kernel.configurations(samples)
+    rows = slice(0, 3) if task == "position" else slice(0, 6)
+    for k, q in enumerate(Q):
+        J = pin.computeFrameJacobian(kernel.model, kernel.data, q, kernel.fid, pin.ReferenceFrame.LOCAL)[rows][:, kernel.L.v_arm]
+        s = np.linalg.svd(J, compute_uv=False)
+        assert got[k] == pytest.approx(np.prod(s[:min(J.shape)]), rel=1e-9, abs=1e-14)

@@ -118,7 +118,7 @@ def test_schema_accepts_units_and_rejects_typos():
 
 
 def test_stats_streamed_in_blocks_equal_one_block_and_a_brute_force_best():
-    """Block by block (the slices accumulated with ufunc.at on flat indices, the best kept per block)
+    """Block by block (the slices accumulated per cell in row order, the best kept per block)
     gives what one block gives, and the best configurations are the sorted top of all samples."""
     rng = np.random.default_rng(3)
     n = 600
@@ -146,3 +146,59 @@ def test_stats_streamed_in_blocks_equal_one_block_and_a_brute_force_best():
         v = cols[c]
         order = sorted((i for i in range(n) if np.isfinite(v[i])), key=lambda i: -v[i] if higher else v[i])  # stable
         assert [b["sample"] for b in many.summary()["best"][c]] == order[:5], c
+
+
+def test_slices_accumulate_like_ufunc_at_to_the_bit():
+    """The compiled slice pass (summary._slice_add) gives the bits of NumPy's sequential per-cell
+    accumulation: np.minimum.at / np.maximum.at / np.add.at in row order, non-finite values counted
+    out (+inf / -inf / 0 / 0), -0.0 sums included."""
+    rng = np.random.default_rng(11)
+    n, cols = 3000, ["a", "b", "K_m", "z", "w"]
+    samples = rng.random((n, 2))
+    vals = {c: rng.normal(size=n) * 10.0 ** rng.integers(-8, 8, size=n) for c in cols}
+    vals["a"][::7], vals["b"][::11], vals["K_m"][::5] = np.nan, np.inf, -0.0
+    vals["z"] = np.where(rng.random(n) < 0.5, -0.0, 0.0)  # signed zeros: ties of min / max, -0.0 sums
+    vals["z"][::9] = np.nan
+    vals["w"] = np.full(n, -0.0)  # sums start at +0.0: -0.0 values and NaN rows leave +0.0
+    vals["w"][::9] = np.nan
+    st = StudyStats(cols, ["p", "q"], [(0.0, 1.0), (0.0, 1.0)], None, best=0, bins=6)
+    for s in range(0, n, 700):
+        st.add(samples[s:s + 700], {c: v[s:s + 700] for c, v in vals.items()}, s)
+    X = np.column_stack([vals[c] for c in cols])
+    fin = np.isfinite(X)
+    for j, (_, inner) in enumerate(st.edges):
+        b = np.searchsorted(inner, samples[:, j])
+        ref = [np.full((6, 5), np.inf), np.full((6, 5), -np.inf), np.zeros((6, 5)), np.zeros((6, 5), np.int64)]
+        for s in range(0, n, 700):  # the blocks, then row by row as the reference ufunc.at calls go
+            rows = np.arange(s, min(s + 700, n))
+            cell = (b[rows][:, None] * 5 + np.arange(5)).ravel()
+            np.minimum.at(ref[0].reshape(-1), cell, np.where(fin[rows], X[rows], np.inf).ravel())
+            np.maximum.at(ref[1].reshape(-1), cell, np.where(fin[rows], X[rows], -np.inf).ravel())
+            np.add.at(ref[2].reshape(-1), cell, np.where(fin[rows], X[rows], 0.0).ravel())
+            np.add.at(ref[3].reshape(-1), cell, fin[rows].astype(np.int64).ravel())
+        for got, want in zip((st.s_min[j], st.s_max[j], st.s_sum[j], st.s_cnt[j]), ref):
+            assert got.tobytes() == want.tobytes()
+
+
+def test_reservoir_keeps_the_rows_of_algorithm_r_to_the_bit():
+    """Reservoir.add (rows copied by a compiled loop, extra columns as parts) keeps the rows that the
+    fancy assignment data[j[keep]] = rows[keep] of algorithm R keeps, with the same draws."""
+    rng = np.random.default_rng(2)
+    size, seen = 40, 0
+    r = Reservoir(size, 3, seed=7)
+    draws = np.random.default_rng(7)
+    ref = np.empty((size, 3))
+    for _ in range(30):
+        k = int(rng.integers(1, 60))
+        a, b = rng.normal(size=(k, 2)), rng.normal(size=(k, 1))
+        r.add(a, b)
+        rows = np.column_stack([a, b])
+        free = max(0, min(size - seen, k))
+        ref[seen:seen + free] = rows[:free]
+        if free < k:
+            idx = np.arange(seen + free, seen + k)
+            j = (draws.random(len(idx)) * (idx + 1)).astype(np.int64)
+            keep = j < size
+            ref[j[keep]] = rows[free:][keep]
+        seen += k
+    assert r.seen == seen and r.rows.tobytes() == ref.tobytes()

@@ -161,3 +161,45 @@ def test_an_interrupted_study_writes_no_table(tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         sms.analyze(mission, out=out, csv=True)
     assert sorted(p.name for p in out.iterdir()) == [".sms.lock"]
+
+
+def test_an_evaluation_error_reaches_the_command_and_writes_no_table(tmp_path, monkeypatch):
+    """Blocks are evaluated one ahead on a background thread (stage._ahead): its error is raised by the
+    command, as if evaluated in line, and no table appears."""
+    import sms_cli as sms
+    from sms_cli.analysis import workspace
+
+    mission = study(tmp_path)
+    calls = []
+    real = workspace.evaluate_block
+
+    def evaluate(*a, **k):
+        calls.append(1)
+        if len(calls) == 3:
+            raise FloatingPointError("block 3")
+        return real(*a, **k)
+
+    monkeypatch.setattr(workspace, "evaluate_block", evaluate)
+    out = tmp_path / "out"
+    with pytest.raises(FloatingPointError, match="block 3"):
+        sms.analyze(mission, out=out)
+    assert sorted(p.name for p in out.iterdir()) == [".sms.lock"]
+
+
+def test_a_parquet_write_error_reaches_the_command(tmp_path, monkeypatch):
+    """Row groups are written on a background thread (table.ParquetTable): a write error is raised by
+    the command, and no table appears."""
+    import pyarrow.parquet as pq
+
+    import sms_cli as sms
+
+    mission = study(tmp_path)
+
+    def fail(self, *a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", fail)
+    out = tmp_path / "out"
+    with pytest.raises(OSError, match="disk full"):
+        sms.analyze(mission, out=out)
+    assert sorted(p.name for p in out.iterdir()) == [".sms.lock"]

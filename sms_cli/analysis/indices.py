@@ -41,9 +41,12 @@ Task rows: the EE linear velocity for arms with fewer than 6 joints (position ta
 from __future__ import annotations
 
 import itertools
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from sms_cli.analysis import kernels as K
 
 #: Columns produced by each index group.
 GROUP_COLUMNS: dict[str, tuple[str, ...]] = {
@@ -99,98 +102,40 @@ KINEMATIC_GROUPS = ("fixed_manipulability", "joint_limits")
 KINEMATICS_ONLY = "needs the mass matrix; the robot is kinematics-only (robot.kinematics_only: placeholder inertias)"
 
 
+#: Samples per thread below which a block is evaluated on the calling thread alone.
+MIN_PART = 256
+_EXECUTOR: list = []
+
+
+def analysis_threads() -> int:
+    """Threads that evaluate a block's indices: ``SMS_ANALYSIS_THREADS``, else the cores this process
+    may use (the values do not depend on it)."""
+    env = os.environ.get("SMS_ANALYSIS_THREADS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _executor():
+    """The process's pool of index threads (started on first use)."""
+    if not _EXECUTOR:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _EXECUTOR.append(ThreadPoolExecutor(max_workers=analysis_threads(), thread_name_prefix="sms-indices"))
+    return _EXECUTOR[0]
+
+
 def _finite_positive(x: np.ndarray) -> bool:
     return x.size > 0 and bool(np.all(np.isfinite(x) & (x > 0)))
 
 
-def det3(A: np.ndarray) -> np.ndarray:
-    """Determinants of a stack of 3×3 matrices (closed form)."""
-    return (A[..., 0, 0] * (A[..., 1, 1] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 1])
-            - A[..., 0, 1] * (A[..., 1, 0] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 0])
-            + A[..., 0, 2] * (A[..., 1, 0] * A[..., 2, 1] - A[..., 1, 1] * A[..., 2, 0]))
-
-
-def inv3(A: np.ndarray) -> np.ndarray:
-    """Inverses of a stack of 3×3 matrices (adjugate over determinant)."""
-    c0 = np.cross(A[..., 1, :], A[..., 2, :])
-    c1 = np.cross(A[..., 2, :], A[..., 0, :])
-    c2 = np.cross(A[..., 0, :], A[..., 1, :])
-    det = np.einsum("...i,...i->...", A[..., 0, :], c0)
-    return np.stack([c0, c1, c2], axis=-1) / det[..., None, None]
-
-
-def eig_sym3(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Smallest and largest eigenvalues of a stack of symmetric 3×3 matrices (Smith 1961)."""
-    q = (G[..., 0, 0] + G[..., 1, 1] + G[..., 2, 2]) / 3.0
-    p1 = G[..., 0, 1] ** 2 + G[..., 0, 2] ** 2 + G[..., 1, 2] ** 2
-    p2 = (G[..., 0, 0] - q) ** 2 + (G[..., 1, 1] - q) ** 2 + (G[..., 2, 2] - q) ** 2 + 2.0 * p1
-    p = np.sqrt(p2 / 6.0)
-    safe = np.where(p > 0, p, 1.0)
-    B = (G - q[..., None, None] * np.eye(3)) / safe[..., None, None]
-    r = np.clip(det3(B) / 2.0, -1.0, 1.0)
-    phi = np.arccos(r) / 3.0
-    hi = np.where(p > 0, q + 2.0 * p * np.cos(phi), q)
-    lo = np.where(p > 0, q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0), q)
-    return lo, hi
-
-
-def gram(X: np.ndarray) -> np.ndarray:
-    """The smaller Gram matrix of each matrix of a stack (X Xᵀ if rows ≤ cols, else Xᵀ X)."""
-    Xt = np.swapaxes(X, -1, -2)
-    return X @ Xt if X.shape[-2] <= X.shape[-1] else Xt @ X
-
-
-def mu_of_gram(G: np.ndarray) -> np.ndarray:
-    """sqrt(det G), clipped at 0 (closed form for 3×3)."""
-    n = G.shape[-1]
-    d = det3(G) if n == 3 else (np.linalg.det(G) if n else np.ones(G.shape[:-2]))
-    return np.sqrt(np.maximum(d, 0.0))
-
-
 def manipulability(X: np.ndarray) -> np.ndarray:
     """μ of a stack of matrices (k×r×c): product of the min(r, c) singular values = sqrt(det) of
-    the smaller Gram matrix (0 when rank-deficient)."""
-    r, c = X.shape[-2:]
-    if r == 0 or c == 0:
-        return np.zeros(X.shape[0])
-    if r == c == 3:
-        return np.abs(det3(X))
-    return mu_of_gram(gram(X))
-
-
-def cond_of_gram(G: np.ndarray) -> np.ndarray:
-    """σ_min/σ_max of the matrix whose Gram matrix is G (0 for a zero matrix)."""
-    if G.shape[-1] == 3:
-        lo, hi = eig_sym3(G)
-    elif G.shape[-1] == 0:
-        return np.zeros(G.shape[:-2])
-    else:
-        ev = np.linalg.eigvalsh(G)
-        lo, hi = ev[..., 0], ev[..., -1]
-    return np.sqrt(np.clip(lo, 0.0, None) / np.where(hi > 0, hi, np.inf))
-
-
-def _skew_stack(v: np.ndarray) -> np.ndarray:
-    S = np.zeros(v.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
-
-
-def _cross_cols(c: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """c × each column of X: c (k×3), X (k×3×n) → k×3×n."""
-    c0, c1, c2 = c[:, 0, None], c[:, 1, None], c[:, 2, None]
-    x0, x1, x2 = X[:, 0], X[:, 1], X[:, 2]
-    return np.stack([c1 * x2 - c2 * x1, c2 * x0 - c0 * x2, c0 * x1 - c1 * x0], axis=1)
-
-
-def _rpy_zyx(R: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw (R = Rz(yaw) Ry(pitch) Rx(roll)) of a stack of rotations."""
-    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
-    pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
-    roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
-    return np.column_stack([roll, pitch, yaw])
+    the smaller Gram matrix (0 when rank-deficient); the kernel's formula (``kernels.manipulability``)."""
+    return K.manipulability_stack(np.ascontiguousarray(X, dtype=float))
 
 
 def _box_vertices(n: int) -> np.ndarray:
@@ -235,7 +180,11 @@ class IndexKernel:
         self._symmetric: bool | None = None
         self._wheel_rank: int | None = None
         if "momentum" in self.groups:
-            self._vertices = _box_vertices(self.nm) * layout.q_max[:, None]
+            self._vertices = np.ascontiguousarray(_box_vertices(self.nm) * layout.q_max[:, None])
+        # limits as the kernel takes them (float64, contiguous; unused ones may be inf)
+        self._q_max = np.ascontiguousarray(layout.q_max, dtype=float)
+        self._omega_max = np.ascontiguousarray(layout.omega_max, dtype=float)
+        self._tau_max = np.ascontiguousarray(layout.tau_max, dtype=float)
 
     def _feasible_groups(self, groups: tuple[str, ...]) -> tuple[str, ...]:
         """Drop the groups whose limits are missing; the reason goes to ``layout.skipped``."""
@@ -310,110 +259,87 @@ class IndexKernel:
         return self.from_terms(Q, Ms, Js)
 
     def from_terms(self, Q: np.ndarray, Ms: np.ndarray, Js: np.ndarray) -> dict[str, np.ndarray]:
-        """Indices from the mass matrices and LOCAL EE Jacobians of the configurations Q."""
+        """Indices from the mass matrices and LOCAL EE Jacobians of the configurations Q (one compiled
+        pass over the samples: ``kernels.block_indices``)."""
         L, nm, nr, g = self.L, self.nm, self.nr, self.groups
-        arm = L.v_arm.astype(int)
-        out: dict[str, np.ndarray] = {}
-        # EE frame → R_sat: the base-angular columns of the LOCAL Jacobian are R_eeᵀ R_0.
-        Rs = np.swapaxes(Js[:, 3:6, 3:6], -1, -2)  # R_sat←ee
-        Jl = Rs @ Js[:, 0:3, :][:, :, np.r_[3:6, arm]]  # linear rows: [-[d]× | J_m,lin]
-        Jm_lin, Jm_ang = Jl[:, :, 3:], Rs @ Js[:, 3:6, :][:, :, arm]  # fixed-base arm Jacobian (R_sat)
-        d = np.column_stack([Jl[:, 1, 2], Jl[:, 2, 0], Jl[:, 0, 1]])  # EE origin in R_sat
-        rpy = _rpy_zyx(Rs)
-        out.update(ee_x=d[:, 0], ee_y=d[:, 1], ee_z=d[:, 2], ee_roll=rpy[:, 0], ee_pitch=rpy[:, 1], ee_yaw=rpy[:, 2])
+        free = bool(set(g) - set(KINEMATIC_GROUPS))
+        what = K.FREE if free else 0
+        for group, bit in (("manipulability", K.MANIP), ("dynamic_manipulability", K.DYN), ("base_indices", K.BASE),
+                           ("null_motion", K.NULL), ("momentum", K.MOMENTUM)):
+            if group in g:
+                what |= bit
+        if "momentum" in g and nr:
+            if self._wheel_rank is None and len(Q):  # the wheels' momentum span, from the first sample
+                A0 = self._compiled(Ms[:1], Js[:1], K.FREE)[1]
+                self._wheel_rank = int(np.linalg.matrix_rank(A0[0, :, nm:]))
+            if self._wheel_rank == 3:
+                what |= K.ZONOTOPE
+        X, A, _ = self._compiled(Ms, Js, what)
+        col = dict(zip(K.OUT, X))
+        out: dict[str, np.ndarray] = {c: col[c] for c in GROUP_COLUMNS["pose"]}
         self._joint_limits(Q, out)
+        fixed_regular = col["fixed_cond"] >= self.tol
         if "fixed_manipulability" in g:
-            Jt_fix = Jm_lin if self.task == "position" else np.concatenate([Jm_lin, Jm_ang], axis=1)
-            cond = cond_of_gram(gram(Jt_fix))
-            out.update(mu_fixed=manipulability(Jt_fix), fixed_cond=cond, singular=(cond < self.tol).astype(float))
-        if not set(g) - set(KINEMATIC_GROUPS):
+            out.update(mu_fixed=col["mu_fixed"], fixed_cond=col["fixed_cond"], singular=(~fixed_regular).astype(float))
+        if not free:
             return out
-
-        A, xa, xl, Jst_lin, Jst_ang = self._free_floating(Ms, d, Jm_lin, Jm_ang)
-        if self.task == "position":
-            Jt_star, Jt_fix = Jst_lin[:, :, :nm], Jm_lin
-        else:
-            Jt_star = np.concatenate([Jst_lin[:, :, :nm], Jst_ang[:, :, :nm]], axis=1)  # J*_mEE, k × 6 × nm
-            Jt_fix = np.concatenate([Jm_lin, Jm_ang], axis=1)
-        if "manipulability" in g or "null_motion" in g:
-            fixed_regular = cond_of_gram(gram(Jt_fix)) >= self.tol
         if "manipulability" in g:
-            cond = cond_of_gram(gram(Jt_star))
-            mu_s, mu_f = manipulability(Jt_star), manipulability(Jt_fix)
+            mu_s, mu_f = col["mu_gjm"], col["mu_fixed"]
             with np.errstate(divide="ignore", invalid="ignore"):
                 ratio = np.where(fixed_regular, mu_s / mu_f, np.nan)
-            out.update(mu_fixed=mu_f, mu_gjm=mu_s, gjm_cond=cond, singular=(cond < self.tol).astype(float),
-                       mu_ratio=ratio)
+            out.update(mu_fixed=mu_f, mu_gjm=mu_s, gjm_cond=col["gjm_cond"],
+                       singular=(col["gjm_cond"] < self.tol).astype(float), mu_ratio=ratio)
         if "dynamic_manipulability" in g:
-            Xm = np.concatenate([xl[:, :, :nm], xa[:, :, :nm]], axis=1)  # M_bb⁻¹ M_bm
-            Hstar = Ms[:, arm][:, :, arm] - Ms[:, arm, 0:6] @ Xm  # H*_m: base free, wheels locked
-            Hinv = inv3(Hstar) if nm == 3 else np.linalg.inv(Hstar)
-            out["mu_dyn"] = manipulability((Jt_star @ Hinv) * L.tau_max)  # J◇ = J* H*⁻¹ diag(τ_max)
+            out["mu_dyn"] = col["mu_dyn"]
         if "base_indices" in g:
-            fm = np.einsum("kij,kij->k", A[:, :, :nm], A[:, :, :nm] * L.q_max ** 2)  # ‖S_U J^ω0_m0 Q_max‖²_F
-            fr = np.einsum("kij,kij->k", A[:, :, nm:], A[:, :, nm:] * L.omega_max ** 2) if nr else np.zeros_like(fm)
-            tot = np.sqrt(fm + fr)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                out.update(K_m=np.sqrt(fm) / tot, K_r=np.sqrt(fr) / tot)
+            out.update(K_m=col["K_m"], K_r=col["K_r"])
         if "null_motion" in g:
-            scale = np.concatenate([L.q_max, L.omega_max[:nr]])
-            lin, ang = Jst_lin * scale, Jst_ang * scale  # J^scal_rEE, J^scal_ωEE (3.23)
-            mun_l, mun_a = _null_motion_mu(-xa * scale, lin, ang)  # J^scal_ω0 (3.17a)
-            mus_l = manipulability(lin)
-            mu_fs = manipulability(Jm_lin * L.q_max)
+            mus_l, mun_l, mu_fs = col["mu_scal_lin"], col["mu_null_lin"], col["mu_fixed_scaled"]
             ok = fixed_regular & (mu_fs > 0)
             with np.errstate(divide="ignore", invalid="ignore"):
-                out.update(mu_scal_lin=mus_l, mu_null_lin=mun_l, mu_null_ang=mun_a,
+                out.update(mu_scal_lin=mus_l, mu_null_lin=mun_l, mu_null_ang=col["mu_null_ang"],
                            mu_scal_lin_norm=np.where(ok, mus_l / mu_fs, np.nan),
                            mu_null_lin_norm=np.where(ok, mun_l / mu_fs, np.nan))
         if "momentum" in g:
-            H = A[:, :, :nm] @ self._vertices  # k × 3 × n_vertices
-            out["h_arm_max"] = np.sqrt(np.einsum("kiv,kiv->kv", H, H).max(axis=1))
-            if nr:
-                if self._wheel_rank is None:
-                    self._wheel_rank = int(np.linalg.matrix_rank(A[0, :, nm:]))
-                out["h_ratio"] = _zonotope_gauge(H, A[:, :, nm:] * L.omega_max, self._wheel_rank)
-            else:
+            out["h_arm_max"] = col["h_arm_max"]
+            if not nr:
                 out["h_ratio"] = np.full(len(Q), np.inf)
+            elif self._wheel_rank == 3:
+                out["h_ratio"] = col["h_ratio"]
+            else:
+                out["h_ratio"] = _zonotope_gauge(A[:, :, :nm] @ self._vertices, A[:, :, nm:] * L.omega_max, self._wheel_rank)
         return out
 
-    def _free_floating(self, Ms, d, Jm_lin, Jm_ang):
-        """Centroidal momentum columns A and the zero-momentum maps, all in R_sat.
+    def _compiled(self, Ms: np.ndarray, Js: np.ndarray, what: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``kernels.block_indices`` on a block: (columns ``kernels.OUT`` × k, A k × 3 × n, J* k × 6 × n),
+        its parts on :func:`analysis_threads` threads."""
+        L, k, n = self.L, len(Ms), self.nm + self.nr
+        X = np.full((k, len(K.OUT)), np.nan)
+        A, Jst = np.empty((k, 3, n)), np.empty((k, 6, n))
+        vertices = self._vertices if "momentum" in self.groups else np.zeros((self.nm, 1))
+        Ms, Js = np.ascontiguousarray(Ms, dtype=float), np.ascontiguousarray(Js, dtype=float)
+        arm, act = np.ascontiguousarray(L.v_arm, dtype=np.int64), np.ascontiguousarray(self._act, dtype=np.int64)
 
-        Returns A (h_G per actuator rate), xa = -ω_b and xl = -v_b per actuator rate, and the EE
-        generalized Jacobians [J*_mEE J*_rEE] split in linear and angular rows.
-        """
-        nm = self.nm
-        # Base block of M = [[m I, -m[c]×], [m[c]×, I_O]] (R_sat, base-link origin O, CoM c).
-        m = Ms[:, 0, 0][:, None, None]
-        c = np.column_stack([Ms[:, 5, 1], Ms[:, 3, 2], Ms[:, 4, 0]]) / m[:, 0]
-        Bact = Ms[:, 0:6, :][:, :, self._act]  # momentum [p; h_O] per actuator rate
-        A = Bact[:, 3:6] - _cross_cols(c, Bact[:, 0:3])  # h_G = h_O - c × p: arm columns, then wheels
-        # Zero momentum, seed (3.5): ω_b = -S_U⁻¹ A, S_U = I_O + m[c]×[c]× (locked inertia about
-        # the CoM, the Schur complement of (3.7)); v_b = -(p/m + c × S_U⁻¹ A).
-        SU = Ms[:, 3:6, 3:6] + m * (c[:, :, None] * c[:, None, :] - np.einsum("ki,ki->k", c, c)[:, None, None] * np.eye(3))
-        xa = inv3(SU) @ A
-        xl = Bact[:, 0:3] / m + _cross_cols(c, xa)
-        # J* (3.8): [J_m; 0] plus the base-velocity map (EE velocity v_b + ω_b × d, EE rate ω_b).
-        Jst_lin = _cross_cols(d, xa) - xl
-        Jst_lin[:, :, :nm] += Jm_lin
-        Jst_ang = -xa
-        Jst_ang[:, :, :nm] += Jm_ang
-        return A, xa, xl, Jst_lin, Jst_ang
+        def part(a: int, b: int) -> None:
+            K.block_indices(Ms[a:b], Js[a:b], arm, act, self.task == "pose", what, self._q_max, self._omega_max,
+                            self._tau_max, vertices, X[a:b], A[a:b], Jst[a:b])
+
+        parts = min(analysis_threads(), k // MIN_PART)
+        if parts > 1:
+            cuts = [k * i // parts for i in range(parts + 1)]
+            for f in [_executor().submit(part, a, b) for a, b in zip(cuts[:-1], cuts[1:])]:
+                f.result()
+        else:
+            part(0, k)
+        return np.ascontiguousarray(X.T), A, Jst
 
     def generalized_jacobians(self, samples: np.ndarray) -> dict[str, np.ndarray]:
-        """J*_mEE, J*_rEE (3.8) and the fixed-base J_m at each sample: k × 6 × n, EE twist [v; ω] in R_sat."""
+        """J*_mEE, J*_rEE (3.8) at each sample (k × 6 × n, EE twist [v; ω] in R_sat), the centroidal
+        momentum columns h_G (k × 3 × n, arm then wheels) and the EE position in R_sat (k × 3)."""
         Q = self.configurations(samples)
         Ms, Js = self.pinocchio_terms(Q)
-        Rs = np.swapaxes(Js[:, 3:6, 3:6], -1, -2)
-        arm = self.L.v_arm.astype(int)
-        Jl = Rs @ Js[:, 0:3, :][:, :, np.r_[3:6, arm]]
-        Jm_lin, Jm_ang = Jl[:, :, 3:], Rs @ Js[:, 3:6, :][:, :, arm]
-        d = np.column_stack([Jl[:, 1, 2], Jl[:, 2, 0], Jl[:, 0, 1]])
-        A, xa, xl, Jst_lin, Jst_ang = self._free_floating(Ms, d, Jm_lin, Jm_ang)
-        J = np.concatenate([Jst_lin, Jst_ang], axis=1)
-        return {"J_mEE": J[:, :, :self.nm], "J_rEE": J[:, :, self.nm:], "J_m_fixed": np.concatenate([Jm_lin, Jm_ang], axis=1),
-                "h_G": A, "ee_position": d}
+        X, A, J = self._compiled(Ms, Js, K.FREE)
+        return {"J_mEE": J[:, :, :self.nm], "J_rEE": J[:, :, self.nm:], "h_G": A, "ee_position": X[0:3].T.copy()}
 
     def _joint_limits(self, Q: np.ndarray, out: dict[str, np.ndarray]) -> None:
         if "joint_limits" not in self.groups:
@@ -426,78 +352,20 @@ class IndexKernel:
         out["joint_limit_margin"] = np.clip(margin.min(axis=1), 0.0, 1.0)
 
 
-def centroidal_columns(Ms: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Angular momentum about the system CoM per unit rate of the joints ``cols`` (base still), R_sat.
-
-    From the base rows of M: h_O = M[3:6], p = M[0:3], h_G = h_O - c × p with the CoM
-    c = vee(M[3:6, 0:3]) / m. Equals -S_U J^{ω0} of Kraiem 2022 (3.15)-(3.16).
-    """
-    m = Ms[:, 0, 0]
-    c = np.column_stack([Ms[:, 5, 1], Ms[:, 3, 2], Ms[:, 4, 0]]) / m[:, None]
-    B = Ms[:, 0:6, :][:, :, cols]
-    return B[:, 3:6] - _cross_cols(c, B[:, 0:3])
-
-
-def _null_motion_mu(Jw0: np.ndarray, lin: np.ndarray, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """μ(X N) for X = lin, ang with N = I - J⁺J, J = Jw0 (3 × n) (3.24)-(3.25).
-
-    N is a symmetric projector, so (XN)(XN)ᵀ = X Xᵀ - (X Jᵀ)(J Jᵀ)⁻¹(X Jᵀ)ᵀ when J has full row
-    rank; other samples (and n < 3) use the pseudo-inverse.
-    """
-    k, _, n = Jw0.shape
-    res = [np.empty(k), np.empty(k)]
-    if n >= 3:
-        Jt = np.swapaxes(Jw0, -1, -2)
-        G = Jw0 @ Jt
-        tr = (G[:, 0, 0] + G[:, 1, 1] + G[:, 2, 2]) / 3.0
-        ok = det3(G) > 1e-14 * tr ** 3  # J Jᵀ well conditioned (cond(J) ≲ 1e7)
-        Gi = inv3(np.where(ok[:, None, None], G, np.eye(3)))
-        for r, X in zip(res, (lin, ang)):
-            XJ = X @ Jt
-            XX = X @ np.swapaxes(X, -1, -2)
-            r[:] = mu_of_gram(XX - XJ @ Gi @ np.swapaxes(XJ, -1, -2))
-            # the subtraction keeps ~half the digits: below √eps·‖X‖³ the value is round-off, report 0
-            floor = 1e-7 * (XX[:, 0, 0] + XX[:, 1, 1] + XX[:, 2, 2]) ** 1.5
-            r[r < floor] = 0.0
-        bad = np.flatnonzero(~ok)
-    else:
-        bad = np.arange(k)
-    if bad.size:
-        N = np.eye(n)[None] - np.linalg.pinv(Jw0[bad]) @ Jw0[bad]
-        res[0][bad] = manipulability(lin[bad] @ N)
-        res[1][bad] = manipulability(ang[bad] @ N)
-    return res[0], res[1]
-
-
 def _zonotope_gauge(H: np.ndarray, G: np.ndarray, rank: int) -> np.ndarray:
     """Per sample, max over the columns h of H of the gauge of h in the zonotope {G t, |t|∞ ≤ 1}.
 
     A 3-D zonotope's facets are parallel to pairs of generators, so the gauge is
-    max_n |nᵀh| / Σ_i |nᵀ g_i| over n = g_i × g_j (pairs of parallel generators give n = 0 and
-    are ignored). Coplanar or collinear wheel axes (``rank`` < 3) use the exact
-    lower-dimensional gauge (inf for momentum outside the wheels' span).
+    max_n |nᵀh| / Σ_i |nᵀ g_i| over n = g_i × g_j (``kernels.zonotope_gauge``). Coplanar or
+    collinear wheel axes (``rank`` < 3) use the exact lower-dimensional gauge (inf for momentum
+    outside the wheels' span).
     """
     k, _, nr = G.shape
     gmax = float(np.abs(G).max()) if G.size else 0.0
     tiny = 1e-12 * max(gmax, 1e-300)
     if rank < 3:
         return np.array([_gauge_low_rank(H[s], G[s], tiny) for s in range(k)])
-    i, j = np.triu_indices(nr, 1)
-    normals = np.swapaxes(_cross_cols_pairs(G, i, j), 1, 2)  # k × P × 3
-    nn = np.sqrt(np.einsum("kpi,kpi->kp", normals, normals))
-    valid = nn > tiny * gmax
-    normals = normals / np.where(valid, nn, 1.0)[:, :, None]
-    supp = np.abs(normals @ G).sum(axis=2)  # support function of the zonotope, k × P
-    proj = np.abs(normals @ H)  # k × P × V
-    ratio = np.where(valid[:, :, None], proj / np.where(supp > 0, supp, np.inf)[:, :, None], 0.0)
-    return ratio.max(axis=(1, 2))
-
-
-def _cross_cols_pairs(G: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """G[:, :, i] × G[:, :, j] for index pairs (k × 3 × P)."""
-    a, b = G[:, :, i], G[:, :, j]
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+    return K.zonotope_gauge_stack(np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(G, dtype=float))
 
 
 def _gauge_low_rank(H: np.ndarray, G: np.ndarray, tiny: float) -> float:

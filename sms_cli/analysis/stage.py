@@ -130,10 +130,8 @@ def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, formats: tu
                 tables[v.name] = stack.enter_context(sample_tables(out, f"analysis_{v.name}", qcols + v.kernel.columns,
                                                                    formats))
         done = 0
-        for block in sampler.chunks():
-            tc = time.perf_counter()
-            _, res = evaluate_block(variants, block)
-            t_compute += time.perf_counter() - tc
+        for block, res, dt in _ahead(_evaluated(sampler, variants, evaluate_block)):
+            t_compute += dt
             for v, r in zip(variants, res):
                 if v.name in tables:
                     tables[v.name].write({**{c: block[:, j] for j, c in enumerate(qcols)}, **r})
@@ -178,6 +176,60 @@ def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, formats: tu
         for m in section["modal"]:
             section["artifacts"] += m["files"]
     return section, models
+
+
+def _evaluated(sampler, variants, evaluate_block):
+    """(block, indices per variant, seconds spent evaluating) for each block of the study, in order."""
+    for block in sampler.chunks():
+        tc = time.perf_counter()
+        _, res = evaluate_block(variants, block)
+        yield block, res, time.perf_counter() - tc
+
+
+def _ahead(items):
+    """The items of an iterator, in order, each produced on a background thread while the caller uses
+    the previous one (one item ahead: the next block is sampled and evaluated, Pinocchio and the
+    compiled kernels, while this thread writes the tables and the statistics of the current one).
+    An error of the producer is raised here; leaving early stops it after its current item."""
+    import queue
+    import threading
+
+    q: queue.Queue = queue.Queue(maxsize=1)
+    stop = threading.Event()
+    end = object()
+
+    def send(message) -> bool:
+        """Queue a message unless the consumer left (then False)."""
+        while not stop.is_set():
+            try:
+                q.put(message, timeout=0.05)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def produce():
+        try:
+            for item in items:
+                if not send((item, None)):
+                    return
+            send((end, None))
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer
+            send((end, exc))
+
+    worker = threading.Thread(target=produce, name="sms-evaluate", daemon=True)
+    worker.start()
+    try:
+        while True:
+            item, exc = q.get()
+            if exc is not None:
+                raise exc
+            if item is end:
+                return
+            yield item
+    finally:
+        stop.set()
+        worker.join()
 
 
 def _plots(P, out: Path, variants, stats, mission: str, pool) -> list[Path]:

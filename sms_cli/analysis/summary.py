@@ -8,6 +8,7 @@ slices along each sampled joint (min / mean / max per joint-value bin), and a pl
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from sms_cli.analysis.indices import HIGHER_IS_BETTER
 
@@ -23,21 +24,34 @@ class Reservoir:
         self.seen = 0
         self.rng = np.random.default_rng(seed)
 
-    def add(self, rows: np.ndarray) -> None:
+    def add(self, rows: np.ndarray, *more: np.ndarray) -> None:
+        """Add a block of rows; ``more``: further columns of the same rows (appended after ``rows``'s)."""
         k = len(rows)
         free = max(0, min(self.size - self.seen, k))
+        parts = [np.ascontiguousarray(p, dtype=float) for p in (rows,) + more]
         if free:
-            self.data[self.seen:self.seen + free] = rows[:free]
+            self.data[self.seen:self.seen + free] = np.column_stack([p[:free] for p in parts])
         if free < k:
             idx = np.arange(self.seen + free, self.seen + k)  # global indices of the rest
             j = (self.rng.random(len(idx)) * (idx + 1)).astype(np.int64)
-            keep = j < self.size
-            self.data[j[keep]] = rows[free:][keep]
+            col = 0
+            for p in parts:  # row free + i replaces row j[i] when j[i] < size, in order (the last one stays)
+                _replace_rows(self.data, col, p, free, j)
+                col += p.shape[1]
         self.seen += k
 
     @property
     def rows(self) -> np.ndarray:
         return self.data[: min(self.seen, self.size)]
+
+
+@njit(cache=True, nogil=True)
+def _replace_rows(data, col, rows, first, j):
+    """data[j[i], col:col + rows.shape[1]] = rows[first + i] for each i in order where j[i] < len(data)."""
+    for i in range(j.shape[0]):
+        if j[i] < data.shape[0]:
+            for c in range(rows.shape[1]):
+                data[j[i], col + c] = rows[first + i, c]
 
 
 class StudyStats:
@@ -87,17 +101,12 @@ class StudyStats:
         self.max = np.maximum(self.max, Xmax.max(axis=0))
         self.sum += np.where(finite, X, 0.0).sum(axis=0)
         self.res.add(X)
-        self.plot.add(np.column_stack([X, samples]))
-        # Slices: ufunc.at on flat indices (bin × column), NumPy's fast path (10× the row-indexed call on
-        # 2-D arrays); the same sequential per-cell accumulation, so the same values to the bit.
-        Xsum, Xcnt = np.where(finite, X, 0.0).ravel(), finite.astype(np.int64).ravel()
-        cols = np.arange(X.shape[1])
+        self.plot.add(X, samples)
+        # Slices: per row in order, per column, the cell's running min / max / sum / count (compiled; the
+        # same sequential per-cell accumulation as np.minimum.at & co., so the same values to the bit).
         for j, (_, inner) in enumerate(self.edges):
-            cell = (np.searchsorted(inner, samples[:, j])[:, None] * X.shape[1] + cols).ravel()
-            np.minimum.at(self.s_min[j].reshape(-1), cell, Xmin.ravel())
-            np.maximum.at(self.s_max[j].reshape(-1), cell, Xmax.ravel())
-            np.add.at(self.s_sum[j].reshape(-1), cell, Xsum)
-            np.add.at(self.s_cnt[j].reshape(-1), cell, Xcnt)
+            _slice_add(np.searchsorted(inner, samples[:, j]), X, finite, self.s_min[j], self.s_max[j], self.s_sum[j],
+                       self.s_cnt[j])
         if self.best_k:
             self._update_top(samples, X, finite, first_index)
 
@@ -157,6 +166,25 @@ class StudyStats:
             mx = np.where(np.isfinite(self.s_max[j]), self.s_max[j], np.nan)
             out.append({"joint": self.joints[j], "x": centres, "min": mn, "mean": mean, "max": mx})
         return out
+
+
+@njit(cache=True, nogil=True)
+def _slice_add(bins, X, finite, s_min, s_max, s_sum, s_cnt):
+    """Add rows X (k × n) to the slice cells (bin × column) of their bins: min / max / sum / count of
+    the finite values, as np.minimum.at(s_min, cell, x) etc. row by row (minimum keeps the cell when it
+    is below the value, else takes the value; a non-finite value leaves the cell, the sums starting at
+    +0.0 stay unchanged by the 0 that ufunc.at added)."""
+    for r in range(X.shape[0]):
+        b = bins[r]
+        for c in range(X.shape[1]):
+            if finite[r, c]:
+                x = X[r, c]
+                if not s_min[b, c] < x:
+                    s_min[b, c] = x
+                if not s_max[b, c] > x:
+                    s_max[b, c] = x
+                s_sum[b, c] += x
+                s_cnt[b, c] += 1
 
 
 class Comparison:

@@ -53,7 +53,14 @@ class CsvTable:
 
 
 class ParquetTable:
-    """Append blocks of rows as row groups of a Parquet file (``sample`` int64 first, float64 after)."""
+    """Append blocks of rows as row groups of a Parquet file (``sample`` int64 first, float64 after).
+
+    Row groups are encoded, compressed and written on a background thread (:func:`_writer_thread`,
+    one for the process, so every file's groups are written in order: the same bytes as written
+    here) while the caller evaluates the next blocks; at most one group per file is in flight. The
+    written arrays are kept, not copied, until their group is written: a caller must not change
+    them after :meth:`write`.
+    """
 
     def __init__(self, path: Path, columns: list[str]):
         import pyarrow as pa
@@ -67,6 +74,7 @@ class ParquetTable:
         self._writer = pq.ParquetWriter(str(path), self.schema, **PARQUET_OPTIONS)
         self._pending: list = []
         self._pending_rows = 0
+        self._in_flight = None  # the future of the group being written
 
     def write(self, block: dict[str, np.ndarray]) -> None:
         """Append one block: ``block`` maps every column but ``sample`` to a (k,) array. Blocks are
@@ -74,24 +82,49 @@ class ParquetTable:
         pa = self._pa
         k = len(next(iter(block.values())))
         arrays = [pa.array(np.arange(self.rows, self.rows + k, dtype=np.int64))]
-        arrays += [pa.array(np.array(block[c], dtype=np.float64)) for c in self.columns[1:]]  # a copy: kept
+        arrays += [pa.array(np.ascontiguousarray(block[c], dtype=np.float64)) for c in self.columns[1:]]
         self._pending.append(pa.Table.from_arrays(arrays, schema=self.schema))
         self._pending_rows += k
         self.rows += k
         if self._pending_rows >= ROW_GROUP_ROWS:
             self._flush()
 
+    def _wait(self) -> None:
+        """Wait for the group in flight (its error, if any, is raised here)."""
+        future, self._in_flight = self._in_flight, None
+        if future is not None:
+            future.result()
+
     def _flush(self) -> None:
         if self._pending:
             group = self._pa.concat_tables(self._pending)
-            self._writer.write_table(group, row_group_size=max(group.num_rows, 1))
             self._pending, self._pending_rows = [], 0
+            self._wait()
+            self._in_flight = _writer_thread().submit(self._writer.write_table, group, row_group_size=max(group.num_rows, 1))
 
     def close(self, complete: bool = True) -> None:
         """Write what is pending (``complete``) and close the file."""
-        if complete:
-            self._flush()
-        self._writer.close()
+        try:
+            if complete:
+                self._flush()
+                self._wait()
+            else:
+                with contextlib.suppress(Exception):  # the error being raised is the caller's
+                    self._wait()
+        finally:
+            self._writer.close()
+
+
+_WRITER: list = []
+
+
+def _writer_thread():
+    """The process's Parquet writing thread (a one-thread executor: jobs run in submission order)."""
+    if not _WRITER:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _WRITER.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="sms-parquet"))
+    return _WRITER[0]
 
 
 class SampleTables:
