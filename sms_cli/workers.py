@@ -35,6 +35,18 @@ MAX_WORKERS = 3
 _HEADER = struct.Struct(">Q")
 
 
+def usable_cores(env_var: str | None = None) -> int:
+    """``env_var``'s value when it is a positive integer, else the cores this process may use (its
+    CPU affinity mask), at least 1."""
+    env = os.environ.get(env_var, "").strip() if env_var else ""
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
 def default_workers(env_var: str | None = None) -> int:
     """Worker processes to start: ``env_var``'s value when set (0: every job in the caller), else one
     less than the usable cores, at most :data:`MAX_WORKERS`."""
@@ -44,11 +56,7 @@ def default_workers(env_var: str | None = None) -> int:
             return max(0, int(env))
         except ValueError:
             pass
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        cores = os.cpu_count() or 1
-    return max(0, min(cores - 1, MAX_WORKERS))
+    return max(0, min(usable_cores() - 1, MAX_WORKERS))
 
 
 def _send(fh: BinaryIO, obj: Any) -> None:

@@ -41,7 +41,6 @@ Task rows: the EE linear velocity for arms with fewer than 6 joints (position ta
 from __future__ import annotations
 
 import itertools
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -110,13 +109,9 @@ _EXECUTOR: list = []
 def analysis_threads() -> int:
     """Threads that evaluate a block's indices: ``SMS_ANALYSIS_THREADS``, else the cores this process
     may use (the values do not depend on it)."""
-    env = os.environ.get("SMS_ANALYSIS_THREADS", "").strip()
-    if env.isdigit() and int(env) > 0:
-        return int(env)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
+    from sms_cli.workers import usable_cores
+
+    return usable_cores("SMS_ANALYSIS_THREADS")
 
 
 def _executor():

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import HOT, JIT
+from sms_cli.sim.compiled.attitude_laws import _sign
 
 # law codes
 JOINT_PD, JOINT_SMC, COMPUTED_TORQUE, SMC_COMPUTED_TORQUE = 0, 1, 2, 3
@@ -30,16 +31,6 @@ SCT_K1, SCT_K2, SCT_C, SCT_MU, SCT_LAM, SCT_SIGN = 0, 1, 2, 3, 4, 5
 ARM_PAR_ROWS = 6
 # the arm laws that need the model (M*, h*)
 MODEL_LAWS = (COMPUTED_TORQUE, SMC_COMPUTED_TORQUE)
-
-
-@njit(**HOT)
-def _sign(x):
-    """np.sign: ±1, and 0 (or NaN) for 0 (or NaN)."""
-    if x > 0:
-        return 1.0
-    if x < 0:
-        return -1.0
-    return x
 
 
 @njit(**HOT)

@@ -14,7 +14,6 @@ core) with the pause shown on stderr. Only the kernels of the run's engine are l
 from __future__ import annotations
 
 import importlib
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -51,13 +50,9 @@ def cached(call: KernelCall) -> bool:
 def lanes_available() -> int:
     """Cores this process may use (the CPU affinity mask), at least 1; ``SMS_COMPILE_LANES`` sets
     the number of lanes instead (1: compile in this process only)."""
-    env = os.environ.get("SMS_COMPILE_LANES", "").strip()
-    if env.isdigit() and int(env) > 0:
-        return int(env)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
+    from sms_cli.workers import usable_cores
+
+    return usable_cores("SMS_COMPILE_LANES")
 
 
 def warm(groups: list[list[KernelCall]], *, lanes: int | None = None, stream=None, what: str = "simulation") -> dict:
