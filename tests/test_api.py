@@ -39,7 +39,7 @@ def stable(x):
 
 
 def short_slew_text(seconds: int = 20) -> str:
-    """caldera_s1_slew (the Python loop with the compiled plant) with its slew cut to ``seconds``."""
+    """caldera_s1_slew (the compiled loop under engine: auto) with its slew cut to ``seconds``."""
     text = SLEW.read_text()
     assert "duration: 240 s" in text
     return text.replace("duration: 240 s", f"duration: {seconds} s")
@@ -383,10 +383,11 @@ def test_lmi_synthesis_result_and_infeasible_lmi(tmp_path):
 def test_simulation_figures_and_trace_are_the_clis(engine, tmp_path):
     if engine == "compiled":  # Basilisk's scenario: the compiled loop
         mission = MISSIONS / "basilisk_rw_reference.yaml"
-    else:  # a shortened Caldera 2019 S1 slew: the Python loop (arm law) with the compiled plant
+    else:  # a shortened Caldera 2019 S1 slew, forced onto the Python loop (with the compiled plant)
         mission = tmp_path / "s1_short.yaml"
         mission.write_text(short_slew_text(20).replace("extends: caldera_smallsat.yaml",
-                                                       f"extends: {MISSIONS / 'caldera_smallsat.yaml'}"))
+                                                       f"extends: {MISSIONS / 'caldera_smallsat.yaml'}")
+                           .replace("simulation:\n", "simulation:\n  engine: python\n", 1))
     cli = cli_results(["simulate", mission, "--no-progress"], tmp_path / "cli")["simulate"]
     res = sms.simulate(mission)
     assert res.section["timing"]["engine"].startswith(engine) and cli["timing"]["engine"] == res.section["timing"]["engine"]

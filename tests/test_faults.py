@@ -45,6 +45,7 @@ analysis: null
 synthesis: null
 requirements: []
 simulation:
+  engine: python  # the compiled loop would finish this in about 2 s
   phases:
     - {{name: slew, kind: slew, duration: 2400 s, attitude: [60 deg, 60 deg, 60 deg]}}
 """)
