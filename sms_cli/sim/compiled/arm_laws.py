@@ -20,6 +20,7 @@ from numba import njit
 
 from sms_cli.sim.compiled import HOT, JIT
 from sms_cli.sim.compiled.attitude_laws import _sign
+from sms_cli.sim.compiled.dynamics import cholesky, cholesky_solve
 
 # law codes
 JOINT_PD, JOINT_SMC, COMPUTED_TORQUE, SMC_COMPUTED_TORQUE = 0, 1, 2, 3
@@ -90,31 +91,21 @@ def arm_model_terms(M, nb, a, p, Mstar, hstar):
                 Mstar[i, j] = M[a[i], a[j]]
         return
     # Cholesky of M_pp, then X = M_pp⁻¹ [M_pa, n_p] column by column
+    Mpp = np.empty((k, k))
+    for i in range(k):
+        for j in range(k):
+            Mpp[i, j] = M[p[i], p[j]]
     L = np.zeros((k, k))
-    for j in range(k):
-        d = M[p[j], p[j]]
-        for m in range(j):
-            d -= L[j, m] * L[j, m]
-        d = math.sqrt(d)
-        L[j, j] = d
-        for i in range(j + 1, k):
-            s = M[p[i], p[j]]
-            for m in range(j):
-                s -= L[i, m] * L[j, m]
-            L[i, j] = s / d
+    cholesky(Mpp, k, L)
     X = np.empty((k, na + 1))
-    y = np.empty(k)
+    rhs = np.empty(k)
+    col = np.empty(k)
     for c in range(na + 1):
         for i in range(k):
-            s = M[p[i], a[c]] if c < na else nb[p[i]]
-            for m in range(i):
-                s -= L[i, m] * y[m]
-            y[i] = s / L[i, i]
-        for i in range(k - 1, -1, -1):
-            s = y[i]
-            for m in range(i + 1, k):
-                s -= L[m, i] * X[m, c]
-            X[i, c] = s / L[i, i]
+            rhs[i] = M[p[i], a[c]] if c < na else nb[p[i]]
+        cholesky_solve(L, rhs, k, col)
+        for i in range(k):
+            X[i, c] = col[i]
     for i in range(na):
         acc = nb[a[i]]
         for m in range(k):

@@ -689,8 +689,8 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
 
 
 @njit(**_JIT)
-def _solve_spd(A, b, k, L, out):
-    """out[:k] = A[:k, :k]⁻¹ b[:k] for a symmetric positive definite A (Cholesky; L is k×k scratch)."""
+def cholesky(A, k, L):
+    """L[:k, :k] lower triangular with L Lᵀ = A[:k, :k] (symmetric positive definite A)."""
     for j in range(k):
         d = A[j, j]
         for m in range(j):
@@ -702,6 +702,11 @@ def _solve_spd(A, b, k, L, out):
             for m in range(j):
                 x -= L[i, m] * L[j, m]
             L[i, j] = x / d
+
+
+@njit(**_JIT)
+def cholesky_solve(L, b, k, out):
+    """out[:k] = (L Lᵀ)⁻¹ b[:k], L from ``cholesky``."""
     for i in range(k):
         x = b[i]
         for m in range(i):
@@ -712,6 +717,13 @@ def _solve_spd(A, b, k, L, out):
         for m in range(i + 1, k):
             x -= L[m, i] * out[m]
         out[i] = x / L[i, i]
+
+
+@njit(**_JIT)
+def _solve_spd(A, b, k, L, out):
+    """out[:k] = A[:k, :k]⁻¹ b[:k] for a symmetric positive definite A (Cholesky; L is k×k scratch)."""
+    cholesky(A, k, L)
+    cholesky_solve(L, b, k, out)
 
 
 @njit(**_JIT)

@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import HOT, JIT
+from sms_cli.sim.compiled.dynamics import cross as _cross
 
 # law codes of ``momentum_law`` / ``momentum_lyapunov``
 WHEELS_FREE_FLOATING, FREE_FLYING, HIERARCHICAL, SE3_PD, QUATERNION_LYAPUNOV = 1, 2, 3, 4, 5
@@ -104,13 +105,6 @@ def quaternion_potential(k, quat, ref, gamma):
     gamma[1] = c * ey
     gamma[2] = c * ez
     return k * (ex * ex + ey * ey + ez * ez)
-
-
-@njit(**HOT)
-def _cross(a, b, out):
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
 
 
 @njit(**HOT)

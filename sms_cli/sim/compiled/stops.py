@@ -25,6 +25,22 @@ EV_COLS = 10
 
 
 @njit(**JIT)
+def _nonzero(x):
+    """The indices j with x[j] != 0, in increasing order (int64)."""
+    n = 0
+    for j in range(x.shape[0]):
+        if x[j] != 0:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(x.shape[0]):
+        if x[j] != 0:
+            out[n] = j
+            n += 1
+    return out
+
+
+@njit(**JIT)
 def _solve(A, b, out):
     """out = A⁻¹ b (Gaussian elimination with partial pivoting; A, b are not changed)."""
     k = b.shape[0]
@@ -136,16 +152,8 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
     none_f, none_i = np.zeros(0), np.zeros(0, dtype=np.int64)
     no_Bt, no_BtB = np.zeros((6, 0)), np.zeros((6, 6))
     # contacts: the locked joints whose contact force pushes at (q, v)
-    n_locked = 0
-    for j in range(ns):
-        if side[j] != 0:
-            n_locked += 1
-    locked = np.empty(n_locked, dtype=np.int64)
-    m = 0
-    for j in range(ns):
-        if side[j] != 0:
-            locked[m] = j
-            m += 1
+    locked = _nonzero(side)
+    n_locked = locked.shape[0]
     if n_locked:
         vd = np.empty(nv)
         accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, none_f,
@@ -197,16 +205,8 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
         if side[j] == 0 and beyond[j] != 0 and beyond[j] * v_out[sj_v[j]] > 0.0:
             any_arriving = True
     if any_arriving:
-        m = 0
-        for j in range(ns):
-            if sd[j] != 0:
-                m += 1
-        S = np.empty(m, dtype=np.int64)
-        i = 0
-        for j in range(ns):
-            if sd[j] != 0:
-                S[i] = j
-                i += 1
+        S = _nonzero(sd)
+        m = S.shape[0]
         o = np.empty(m)
         u0 = np.empty(m)
         rate = np.empty(m)
