@@ -119,3 +119,33 @@ def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert got["engine"] == engine
     assert got["new"] == {}
+
+
+ANALYSIS = textwrap.dedent('''
+    import io, json, sys
+    from contextlib import redirect_stderr
+    import sms_cli.sim.compiled.warmup as W
+    from sms_cli.analysis import kernels as K
+    from sms_cli.analysis.stage import analyze_mission
+    from sms_cli.mission.load import load_mission
+
+    W.cached = lambda call: False  # as on a cold cache: the warm-up says what it compiles
+    err = io.StringIO()
+    with redirect_stderr(err):
+        analyze_mission(load_mission(sys.argv[1]), None, plots=False, progress=False)
+    print(json.dumps({"said": err.getvalue(), "signatures": len(K.block_indices.signatures)}))
+''')
+
+
+def test_the_analysis_shows_its_kernel_compilation_and_compiles_nothing_after_it(tmp_path):
+    """`sms analyze` warms ``block_indices`` with the pause on stderr (the first analysis after an
+    install compiles it for tens of seconds, silently before), on the real call's types: the study
+    adds no signature (one in all)."""
+    script = tmp_path / "analysis.py"
+    script.write_text(ANALYSIS)
+    out = subprocess.run([sys.executable, str(script), str(ROOT / "missions/demeter_3dof.yaml")], capture_output=True,
+                         text=True, timeout=600, cwd=ROOT)
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert "compiling 1 analysis kernel" in got["said"] and "compiled block_indices" in got["said"]
+    assert got["signatures"] == 1

@@ -123,6 +123,9 @@ def _executor():
     return _EXECUTOR[0]
 
 
+_WARMED: list = []
+
+
 def _finite_positive(x: np.ndarray) -> bool:
     return x.size > 0 and bool(np.all(np.isfinite(x) & (x > 0)))
 
@@ -305,6 +308,21 @@ class IndexKernel:
                 out["h_ratio"] = _zonotope_gauge(A[:, :, :nm] @ self._vertices, A[:, :, nm:] * L.omega_max, self._wheel_rank)
         return out
 
+    def warm_up(self) -> None:
+        """Load (on a cold cache: compile, with the pause shown on stderr) ``kernels.block_indices`` for
+        this kernel's argument types, once per process (``_compiled`` does it on its first call)."""
+        if _WARMED:
+            return
+        from sms_cli.sim.compiled.warmup import KernelCall, warm
+
+        nv, n = self.model.nv, self.nm + self.nr
+        Ms, Js = np.zeros((1, nv, nv)), np.zeros((1, 6, nv))
+        i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+        args = (Ms, Js, i64(self.L.v_arm), i64(self._act), False, 0, self._q_max, self._omega_max, self._tau_max,
+                np.zeros((self.nm, 1)), np.full((1, len(K.OUT)), np.nan), np.empty((1, 3, n)), np.empty((1, 6, n)))
+        warm([[KernelCall("sms_cli.analysis.kernels:block_indices", args)]], what="analysis")
+        _WARMED.append(True)
+
     def _compiled(self, Ms: np.ndarray, Js: np.ndarray, what: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``kernels.block_indices`` on a block: (columns ``kernels.OUT`` × k, A k × 3 × n, J* k × 6 × n),
         its parts on :func:`analysis_threads` threads."""
@@ -314,6 +332,8 @@ class IndexKernel:
         vertices = self._vertices if "momentum" in self.groups else np.zeros((self.nm, 1))
         Ms, Js = np.ascontiguousarray(Ms, dtype=float), np.ascontiguousarray(Js, dtype=float)
         arm, act = np.ascontiguousarray(L.v_arm, dtype=np.int64), np.ascontiguousarray(self._act, dtype=np.int64)
+
+        self.warm_up()
 
         def part(a: int, b: int) -> None:
             K.block_indices(Ms[a:b], Js[a:b], arm, act, self.task == "pose", what, self._q_max, self._omega_max,
