@@ -84,7 +84,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     return stops + [
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
-                                                  v.copy(), none_f.copy(), none_f.copy(), ws), cost=4.5),
+                                                  v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
             False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *arm_args, *ref, *stop_args, 0.0, 1.0, 1, 0, 0, 1e9,
