@@ -361,6 +361,8 @@ class Simulation:
             groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
                                    recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law,
                                    arm_law=self.arm_law)
+            if self.ndi is not None:  # the NDI law's kernels (sms_cli.sim.compiled.ndi_law)
+                groups.append(self.ndi.warm_calls())
         warm(groups)
 
     # ------------------------------------------------------------------ main loop
