@@ -347,7 +347,13 @@ class Simulation:
         from sms_cli.sim.compiled.kernels import kernel_groups
         from sms_cli.sim.compiled.warmup import warm
 
-        if self.compiled_loop:
+        if self.compiled_loop and self.ndi is not None:  # the NDI loop (sms_cli.sim.compiled.ndi_runner)
+            if self._compiled is None:
+                from sms_cli.sim.compiled.ndi_runner import NdiCompiledSimulation
+
+                self._compiled = NdiCompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.ndi)
+            groups = self._compiled.warm_groups()
+        elif self.compiled_loop:
             if self._compiled is None:
                 from sms_cli.sim.compiled.runner import CompiledSimulation
 

@@ -13,8 +13,9 @@ Units SI (rad, m, sqrt(kg) m for η).
   of one control period; the caller evaluates the bias and internal forces r in between.
 - ``ndi_observe``: the exact ZOH propagation of the observer over the period (discretisation refreshed
   when the arm moved by more than ``refresh`` or the model changed).
-- ``augmented_terms``: M (nx×nx) and r = bias − internal forces for base-mounted appendages (the
-  compiled loop's counterpart of ``SystemModel.mass_matrix``, ``bias_forces``, ``internal_forces``).
+- ``augmented_mass``, ``augmented_bias``: M (nx×nx) and r = bias − internal forces for base-mounted
+  appendages (the compiled loop's counterparts of ``SystemModel.mass_matrix``, ``bias_forces`` −
+  ``internal_forces``).
 """
 
 from __future__ import annotations
@@ -295,18 +296,13 @@ def ndi_observe(M, q_act, y, tau_applied, lin, ang, act, flex, K_f, C_f, L, T, r
 
 
 @njit(**JIT)
-def augmented_terms(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, modal_B, neg_omega2, neg_2zo, v, eta, etadot,
-                    M, r):
-    """M = [[H, Bᵀ on the base rows], [B on the base columns, I]] (nx×nx) and r = bias − internal forces
-    (nx) at the joint transforms (R_rel, p_rel) and the state (v, η, η̇), appendages on the base (B =
-    ``SystemModel.base_modal_coupling``, n_η×6): base rows of the bias + v_b ×* (Bᵀ η̇), modal rows
-    Ω² η + 2ζΩ η̇ (``neg_omega2`` = −Ω², ``neg_2zo`` = −2ζΩ). No spring joints."""
-    nv = v.shape[0]
-    ne = eta.shape[0]
+def augmented_mass(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, modal_B, M):
+    """M = [[H, Bᵀ on the base rows], [B on the base columns, I]] (nx×nx) at the joint transforms (R_rel,
+    p_rel), appendages on the base (B = ``SystemModel.base_modal_coupling``, n_η×6)."""
+    nv = armature.shape[0]
+    ne = modal_B.shape[0]
     H = np.empty((nv, nv))
     mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, H)
-    b = np.empty(nv)
-    bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, b)
     M[:, :] = 0.0
     M[:nv, :nv] = H
     for k in range(ne):
@@ -314,14 +310,22 @@ def augmented_terms(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, 
         for a in range(6):
             M[nv + k, a] = modal_B[k, a]
             M[a, nv + k] = modal_B[k, a]
+
+
+@njit(**JIT)
+def augmented_bias(parent, kind, axis, inertia, idx_v, R_rel, p_rel, modal_B, neg_omega2, neg_2zo, v, eta, etadot, r):
+    """r = bias − internal forces (nx) at the joint transforms (R_rel, p_rel) and the state (v, η, η̇),
+    appendages on the base: RNEA's bias, plus v_b ×* (Bᵀ η̇) on the base rows; modal rows Ω² η + 2ζΩ η̇
+    (``neg_omega2`` = −Ω², ``neg_2zo`` = −2ζΩ). No spring joints."""
+    nv = v.shape[0]
+    ne = eta.shape[0]
+    bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, r[:nv])
     P = np.zeros(6)  # modal momentum as a base-frame wrench [f; n]
     for k in range(ne):
         for a in range(6):
             P[a] += modal_B[k, a] * etadot[k]
     fx, fy, fz, nx, ny, nz = P[0], P[1], P[2], P[3], P[4], P[5]
     vx, vy, vz, wx, wy, wz = v[0], v[1], v[2], v[3], v[4], v[5]
-    for a in range(nv):
-        r[a] = b[a]
     r[0] += wy * fz - wz * fy  # v_b ×* P = [ω × f; v × f + ω × n]
     r[1] += wz * fx - wx * fz
     r[2] += wx * fy - wy * fx
