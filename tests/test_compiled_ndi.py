@@ -117,6 +117,40 @@ def test_augmented_terms_equal_the_system_model(pulsar):
         assert out[0, 9] == pytest.approx(sm.energy(q, v, eta, ed), rel=1e-12)
 
 
+@pytest.mark.parametrize("limit", [1e9, 0.05])
+def test_ndi_torques_give_the_commanded_accelerations(pulsar, limit):
+    """The inversion's identity on the full dynamics M ẍ + r = [0; τ_a; 0] (any r): the arm joints accelerate
+    at their commands q̈_d + kp ε + kv ε̇, and with the wheel gain kv = 0 the wheels' feedforward keeps the
+    base from rotating (ω̇0 = 0). With the wheels clipped to ``limit`` the arm still gets its commands."""
+    from sms_cli.sim.compiled.ndi_law import N_FLAGS, SATURATED
+
+    sm = pulsar
+    ix = sm.reduced.ix
+    rng = np.random.default_rng(5)
+    q, v, _, _ = _state(sm, 1)
+    M = sm.mass_matrix(q)
+    r = rng.normal(size=sm.nx)
+    n_r, n_m = len(sm.wheels), len(sm.arm)
+    na = n_r + n_m
+    kp, kv = np.r_[np.zeros(n_r), rng.uniform(0.1, 1, n_m)], np.r_[np.zeros(n_r), rng.uniform(0.1, 1, n_m)]
+    q_arm = q[[a.q_index for a in sm.arm]]
+    ref_q, ref_qd, ref_qdd = q_arm + rng.normal(scale=0.1, size=n_m), rng.normal(size=n_m), rng.normal(size=n_m)
+    flags, pinv, wrr, tau = np.zeros(N_FLAGS, dtype=np.int64), np.zeros((n_r, 3)), np.zeros(n_r), np.zeros(na)
+    K.ndi_command(M, r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, n_r, kp, kv, 0.3, True,
+                  np.full(n_r, limit), q[3:7].copy(), v[3:6].copy(), v, q_arm, np.array([0.0, 0, 0, 1]), np.zeros(3), ref_q,
+                  ref_qd, ref_qdd, flags, pinv, wrr, tau)
+    rhs = -r
+    rhs[ix.actuators] += tau
+    xdd = np.linalg.solve(M, rhs)
+    v_arm = ref_qdd + kp[n_r:] * (ref_q - q_arm) + kv[n_r:] * (ref_qd - v[ix.actuators[n_r:]])
+    assert _close(xdd[ix.actuators[n_r:]], v_arm, 1e-9)
+    if limit > 1:
+        assert flags[SATURATED] == 0
+        assert np.abs(xdd[ix.base_angular]).max() <= 1e-9 * max(1.0, np.abs(xdd).max())
+    else:
+        assert flags[SATURATED] == 1 and np.all(np.abs(tau[:n_r]) <= limit) and np.any(np.abs(tau[:n_r]) == limit)
+
+
 def _gains(sm) -> dict:
     """Inline NDI gains for the shortened runs: the observer gain of the steady Kalman filter of the model at
     rest (a stable A − L C), joint and wheel PD gains."""
