@@ -215,3 +215,26 @@ def test_engine_auto_runs_the_flagship_compiled(pulsar):
     for mission in ("pulsar_simple.yaml", "pulsar_fast_transfer.yaml"):
         loaded = load_mission(ROOT / "missions" / mission)
         assert unsupported_reason(pulsar, loaded.mission.simulation, None) is None
+
+
+def test_the_warm_up_lists_every_kernel_of_the_ndi_loop(tmp_path, pulsar):
+    """After ``Simulation.warm_up`` the run compiles no new signature of the NDI loop's kernels (a cold cache
+    compiles them all in the warm-up, with progress, none later in the run)."""
+    import importlib
+
+    from sms_cli.sim.engine import Simulation
+
+    path = tmp_path / "m.yaml"
+    path.write_text(_mission_text("pulsar_simple.yaml", "compiled", FLAGSHIP, _gains(pulsar)))
+    loaded = load_mission(path)
+    sm = compile_system(loaded)
+    sim = Simulation(sm, loaded.mission.simulation, None, progress=False)
+    sim.warm_up()
+    kernels = {"ndi_law": ["ndi_velocity", "ndi_command", "ndi_observe", "reduced_at_rest", "observer_discretisation"],
+               "ndi_loop": ["run_ticks_ndi", "modal_sample_momenta"], "stops": ["stop_step"], "dynamics": ["rkmk4_step"],
+               "loop": ["effective_wheel_inertia"]}
+    count = lambda: {f: len(getattr(importlib.import_module(f"sms_cli.sim.compiled.{m}"), f).signatures)  # noqa: E731
+                     for m, fs in kernels.items() for f in fs}
+    before = count()
+    assert sim.run().timing["engine"] == "compiled"
+    assert count() == before

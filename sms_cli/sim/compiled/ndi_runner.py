@@ -265,10 +265,10 @@ class NdiCompiledSimulation(CompiledSimulation):
                 np.empty((0, nw)), e1, e1, np.empty((0, sm.nq)), np.empty((0, sm.nv)), np.empty((0, ne)), np.empty((0, ne)),
                 np.empty((0, nw)), np.empty((0, EV_COLS)), np.zeros(1, dtype=np.int64)), cost=8.0),
         ]
-        groups = [ndi_warm_calls(self.ndi), loop]
+        tr = self.kinematics.tree  # the final state's momenta (every run) and the recording's
+        momenta = [KernelCall(f"{mod}.ndi_loop:modal_sample_momenta", (
+            tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], B, no2, q[None].copy(), v[None].copy(),
+            eta[None].copy(), ed[None].copy(), np.empty((1, 10))), cost=3.0)]
         if self.rec is not None:
-            tr = self.kinematics.tree
-            groups.append([KernelCall(f"{mod}.ndi_loop:modal_sample_momenta", (
-                tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], B, no2, q[None].copy(), v[None].copy(),
-                eta[None].copy(), ed[None].copy(), np.empty((1, 10))), cost=3.0), self.kinematics.warm_call(), warm_call()])
-        return groups
+            momenta += [self.kinematics.warm_call(), warm_call()]
+        return [ndi_warm_calls(self.ndi), loop, momenta]
