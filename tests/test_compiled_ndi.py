@@ -109,9 +109,10 @@ def test_augmented_terms_equal_the_system_model(pulsar):
         K.augmented_bias(T.parent, T.kind, T.axis, T.inertia, T.idx_v, R, p, B, -(om**2), -2 * ze * om, v, eta, ed, r)
         assert _close(M, sm.mass_matrix(q))
         assert _close(r, sm.bias_forces(q, v, ed) - sm.internal_forces(q, v, eta, ed))
-        out = np.empty((1, 10))
+        out, Ms = np.empty((1, 10)), np.empty((1, sm.nx, sm.nx))
         modal_sample_momenta(T.parent, T.kind, T.axis, T.inertia, T.mass, T.com, T.armature, T.place_R, T.place_p, T.idx_q,
-                             T.idx_v, B, -(om**2), q[None], v[None], eta[None], ed[None], out)
+                             T.idx_v, B, -(om**2), q[None], v[None], eta[None], ed[None], out, Ms)
+        assert _close(Ms[0], M)
         p_ref, k_com, k_origin = sm.momenta(q, v, ed)
         assert _close(out[0, :9], np.concatenate([p_ref, k_com, k_origin]))
         assert out[0, 9] == pytest.approx(sm.energy(q, v, eta, ed), rel=1e-12)

@@ -81,9 +81,10 @@ def modal_momentum_energy(q, v, eta, etadot, modal_B, neg_omega2, mass, com, oR,
 
 @njit(**JIT)
 def modal_sample_momenta(parent, kind, axis, inertia, mass, com, armature, place_R, place_p, idx_q, idx_v, modal_B, neg_omega2,
-                         qs, vs, etas, etadots, out):
+                         qs, vs, etas, etadots, out, Ms):
     """[p, k about the CoM, k about the origin, energy] (world frame) of each sampled state, modes included
-    (``SystemModel.momenta``, ``energy``), for the recording."""
+    (``SystemModel.momenta``, ``energy``), for the recording; with ``Ms`` (samples × nx × nx; 0 × nx × nx: not
+    wanted) also the augmented mass matrices (``augmented_mass``)."""
     n = parent.shape[0]
     ws = workspace(n, qs.shape[1], vs.shape[1], etas.shape[1])
     R_rel = np.empty((n, 3, 3))
@@ -92,6 +93,8 @@ def modal_sample_momenta(parent, kind, axis, inertia, mass, com, armature, place
         joint_transforms(kind, axis, place_R, place_p, idx_q, qs[s], R_rel, p_rel)
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, vs[s], out[s], ws)
         modal_momentum_energy(qs[s], vs[s], etas[s], etadots[s], modal_B, neg_omega2, mass, com, ws[16], ws[17], out[s])
+        if Ms.shape[0]:
+            augmented_mass(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, modal_B, Ms[s])
 
 
 @njit(**JIT)

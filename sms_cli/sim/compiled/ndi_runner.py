@@ -37,16 +37,19 @@ class NdiCompiledSimulation(CompiledSimulation):
     def _ndi_args(self, on: bool) -> tuple:
         return (on, *self.ndi.kernel_args())
 
-    def _modal_momenta(self, qs, vs, etas, etadots) -> np.ndarray:
-        """[p, k about the CoM, k about the origin, energy] per sample, modes included (``ndi_loop.modal_sample_momenta``)."""
+    def _modal_momenta(self, qs, vs, etas, etadots, mass_matrices: bool = False):
+        """[p, k about the CoM, k about the origin, energy] per sample, modes included (``ndi_loop.modal_sample_momenta``);
+        with ``mass_matrices`` also (that, the augmented mass matrices)."""
         from sms_cli.sim.compiled.ndi_loop import modal_sample_momenta
 
         tr = self.kinematics.tree
-        out = np.empty((qs.shape[0], 10))
+        n = qs.shape[0]
+        out = np.empty((n, 10))
+        Ms = np.empty((n if mass_matrices else 0, self.sm.nx, self.sm.nx))
         f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
         modal_sample_momenta(tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], self.modal[0],
-                             self.modal[3], f(qs), f(vs), f(etas), f(etadots), out)
-        return out
+                             self.modal[3], f(qs), f(vs), f(etas), f(etadots), out, Ms)
+        return (out, Ms) if mass_matrices else out
 
     def _record_modal(self, times, qs, vs, etas, etadots, tau_w, tau_m, joint_ref, q_ref) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks: modal coordinates,
@@ -59,8 +62,8 @@ class NdiCompiledSimulation(CompiledSimulation):
         qs, vs, etas, etadots = qs[idx], vs[idx], etas[idx], etadots[idx]
         n = idx.size
         refs = np.broadcast_to(q_ref, (n, 4))
-        mom = self._modal_momenta(qs, vs, etas, etadots)
-        locked = np.array([locked_velocity(self.sm, qs[i], vs[i], etadots[i]) for i in range(n)]) if self.sm.wheels else None
+        mom, Ms = self._modal_momenta(qs, vs, etas, etadots, mass_matrices=bool(self.sm.wheels))
+        locked = np.array([locked_velocity(self.sm, qs[i], vs[i], etadots[i], M=Ms[i]) for i in range(n)]) if self.sm.wheels else None
         self.buffer.write(times[idx], qs, vs, etas, tau_w[idx], tau_m[idx], refs, joint_ref[idx], attitude_error(refs, qs[:, 3:7]),
                           p=mom[:, 0:3], k=mom[:, 3:6], wrench=np.zeros((n, 6)) if self.record_wrench else None, locked=locked)
 
@@ -268,7 +271,7 @@ class NdiCompiledSimulation(CompiledSimulation):
         tr = self.kinematics.tree  # the final state's momenta (every run) and the recording's
         momenta = [KernelCall(f"{mod}.ndi_loop:modal_sample_momenta", (
             tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], B, no2, q[None].copy(), v[None].copy(),
-            eta[None].copy(), ed[None].copy(), np.empty((1, 10))), cost=3.0)]
+            eta[None].copy(), ed[None].copy(), np.empty((1, 10)), np.empty((0, sm.nx, sm.nx))), cost=3.0)]
         if self.rec is not None:
             momenta += [self.kinematics.warm_call(), warm_call()]
         return [ndi_warm_calls(self.ndi), loop, momenta]
