@@ -118,6 +118,26 @@ def test_augmented_terms_equal_the_system_model(pulsar):
         assert out[0, 9] == pytest.approx(sm.energy(q, v, eta, ed), rel=1e-12)
 
 
+def test_estimated_velocity_has_zero_linear_momentum(pulsar):
+    """x̂ = [v_lin; ω0; q̇_a; ḟ̂]: the measured parts as given, the observer's modal rates, and v_lin such that the
+    linear momentum M_lin x̂ is zero; the first call seeds the observer's ω0 with the gyro."""
+    from sms_cli.sim.compiled.ndi_law import N_FLAGS, STARTED
+
+    sm = pulsar
+    ix = sm.reduced.ix
+    rng = np.random.default_rng(2)
+    q, v, _, _ = _state(sm, 2)
+    M = sm.mass_matrix(q)
+    n_f = ix.flexible.size
+    x_hat, flags, x = rng.normal(size=2 * n_f + 3), np.zeros(N_FLAGS, dtype=np.int64), np.empty(sm.nx)
+    omega = v[3:6].copy()
+    K.ndi_velocity(M, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, omega, v, x_hat, flags, x)
+    assert flags[STARTED] == 1 and np.all(x_hat[n_f:n_f + 3] == omega)
+    assert np.all(x[ix.base_angular] == omega) and np.all(x[ix.actuators] == v[ix.actuators])
+    assert np.all(x[ix.flexible] == x_hat[n_f + 3:])
+    assert np.abs(M[ix.base_linear] @ x).max() <= 1e-12 * np.abs(M[ix.base_linear]).max() * np.abs(x).max()
+
+
 @pytest.mark.parametrize("limit", [1e9, 0.05])
 def test_ndi_torques_give_the_commanded_accelerations(pulsar, limit):
     """The inversion's identity on the full dynamics M ẍ + r = [0; τ_a; 0] (any r): the arm joints accelerate
