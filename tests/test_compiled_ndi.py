@@ -118,6 +118,18 @@ def test_augmented_terms_equal_the_system_model(pulsar):
         assert out[0, 9] == pytest.approx(sm.energy(q, v, eta, ed), rel=1e-12)
 
 
+def test_rotation_error_is_the_attitude_error():
+    """The law's θ against ``attitude_math.attitude_error`` (rotation vector of q_ref⁻¹ ⊗ q), both signs of w."""
+    from sms_cli.sim.attitude_math import attitude_error
+
+    rng = np.random.default_rng(4)
+    out = np.empty(3)
+    for _ in range(20):
+        q_ref, q = (x / np.linalg.norm(x) for x in rng.normal(size=(2, 4)))
+        K.rotation_error(q_ref, q, out)
+        assert _close(out, attitude_error(q_ref, q), 1e-13)
+
+
 def test_estimated_velocity_has_zero_linear_momentum(pulsar):
     """x̂ = [v_lin; ω0; q̇_a; ḟ̂]: the measured parts as given, the observer's modal rates, and v_lin such that the
     linear momentum M_lin x̂ is zero; the first call seeds the observer's ω0 with the gyro."""

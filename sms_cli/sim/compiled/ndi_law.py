@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled.control import error_quaternion
 from sms_cli.sim.compiled.dynamics import bias_forces, mass_matrix, quat_to_matrix
 
 # flags of the law's state (int64 array)
@@ -163,28 +164,11 @@ def ndi_velocity(M, lin, ang, act, flex, omega, v, x_hat, flags, x):
 
 
 @njit(**JIT)
-def _quat_mul(a, b, out):
-    ax, ay, az, aw = a[0], a[1], a[2], a[3]
-    bx, by, bz, bw = b[0], b[1], b[2], b[3]
-    out[0] = aw * bx + ax * bw + ay * bz - az * by
-    out[1] = aw * by - ax * bz + ay * bw + az * bx
-    out[2] = aw * bz + ax * by - ay * bx + az * bw
-    out[3] = aw * bw - ax * bx - ay * by - az * bz
-
-
-@njit(**JIT)
-def _conj(q):
-    return np.array([-q[0], -q[1], -q[2], q[3]])
-
-
-@njit(**JIT)
 def rotation_error(q_ref, q, out):
-    """Rotation vector (rad, angle ≤ π, base frame) of q_ref⁻¹ ⊗ q (xyzw): ``attitude_math.attitude_error``."""
+    """Rotation vector (rad, angle ≤ π, base frame) of q_ref⁻¹ ⊗ q (xyzw): ``attitude_math.attitude_error``, from
+    the error quaternion of ``control.error_quaternion``."""
     e = np.empty(4)
-    _quat_mul(_conj(q_ref), q, e)
-    if e[3] < 0:
-        for a in range(4):
-            e[a] = -e[a]
+    error_quaternion(q, q_ref, e)
     n = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
     scale = 2.0 if n < 1e-12 else 2.0 * math.atan2(n, e[3]) / max(n, 1e-300)
     for a in range(3):
@@ -227,7 +211,7 @@ def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_l
         theta = np.empty(3)
         rotation_error(ref_quat, quat, theta)
         rel = np.empty(4)
-        _quat_mul(_conj(quat), ref_quat, rel)
+        error_quaternion(ref_quat, quat, rel)  # quat⁻¹ ⊗ ref_quat
         R_rb = np.empty((3, 3))  # base ← reference
         quat_to_matrix(rel[0], rel[1], rel[2], rel[3], R_rb)
         dw = R_rb @ ref_omega - k_att * theta
