@@ -154,12 +154,17 @@ def _compare_missions(tmp_path, mission: str):
     """The shipped ``mission`` run by ``engine: python`` (Pinocchio plant and model terms) and by the compiled
     loop: status, steps, metrics, conservation and every recorded message equal to 1e-9 (the joint-stop
     events' numbers included: impulses and rates come from two dynamics implementations)."""
+    text = lambda e: (f"extends: {ROOT / 'missions' / mission}\nname: {Path(mission).stem}_{e}\n"  # noqa: E731
+                      f"simulation:\n  engine: {e}\n")
+    return _compare_missions_text(tmp_path, text)
+
+
+def _compare_missions_text(tmp_path, text):
+    """``_compare_missions`` of the mission text ``text(engine)``."""
     from test_compiled_engine import _messages, _run
 
     from conftest import assert_tree_close
 
-    text = lambda e: (f"extends: {ROOT / 'missions' / mission}\nname: {Path(mission).stem}_{e}\n"  # noqa: E731
-                      f"simulation:\n  engine: {e}\n")
     (py, py_dir), (cc, cc_dir) = (_run(tmp_path, text(e), e) for e in ("python", "compiled"))
     assert py["timing"]["engine"] == "python" and cc["timing"]["engine"] == "compiled"
     assert (py["status"], py["steps"], py["t_end_s"]) == (cc["status"], cc["steps"], cc["t_end_s"])

@@ -22,6 +22,7 @@ These conserve momentum and (undamped) energy exactly; the design's form drifts.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -217,6 +218,14 @@ class SystemModel:
     def base_modal_coupling(self) -> np.ndarray | None:
         """B (n_modes × 6) when every appendage is on the base (η̈ = r_η − B v̇_base), else None."""
         return self._base_B
+
+    @cached_property
+    def reduced(self):
+        """The reduced form for Kraiem 2022 §3.3 (``sms_cli.model.reduced.ReducedModel``), built once: index
+        sets, flexible stiffness and damping (they do not change when payloads are attached or released)."""
+        from sms_cli.model.reduced import reduced_model
+
+        return reduced_model(self)
 
     @property
     def total_mass(self) -> float:

@@ -347,7 +347,13 @@ class Simulation:
         from sms_cli.sim.compiled.kernels import kernel_groups
         from sms_cli.sim.compiled.warmup import warm
 
-        if self.compiled_loop:
+        if self.compiled_loop and self.ndi is not None:  # the NDI loop (sms_cli.sim.compiled.ndi_runner)
+            if self._compiled is None:
+                from sms_cli.sim.compiled.ndi_runner import NdiCompiledSimulation
+
+                self._compiled = NdiCompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.ndi)
+            groups = self._compiled.warm_groups()
+        elif self.compiled_loop:
             if self._compiled is None:
                 from sms_cli.sim.compiled.runner import CompiledSimulation
 
@@ -361,6 +367,8 @@ class Simulation:
             groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
                                    recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law,
                                    arm_law=self.arm_law)
+            if self.ndi is not None:  # the NDI law's kernels (sms_cli.sim.compiled.ndi_law)
+                groups.append(self.ndi.warm_calls())
         warm(groups)
 
     # ------------------------------------------------------------------ main loop

@@ -22,53 +22,22 @@ Units: SI (rad, m, sqrt(kg) m for η). Frames: ω0 in the base frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from sms_cli.model.reduced import ReducedIndex, rest_matrices
 from sms_cli.synthesis.lmi import ErrorModel
 
-
-@dataclass
-class ReducedIndex:
-    """Index sets into the augmented velocity x = [v; η̇] (size n_x)."""
-
-    base_linear: np.ndarray
-    base_angular: np.ndarray
-    actuators: np.ndarray
-    flexible: np.ndarray
+__all__ = ["ReducedIndex", "error_model_at_rest", "model_index", "flexible_stiffness", "error_model"]
 
 
 def error_model_at_rest(M: np.ndarray, K_f: np.ndarray, C_f: np.ndarray, ix: ReducedIndex,
                         label: str = "") -> ErrorModel:
     """The Kraiem 2022 reduced matrices at rest from the full mass matrix M (n_x×n_x) and the
-    flexible stiffness K_f and damping C_f (n_f×n_f). Returns A_e, C_e, B_ε, M◇, D◇_x."""
-    keep = np.concatenate([ix.base_angular, ix.actuators, ix.flexible])
-    lin = ix.base_linear
-    Mk = M[np.ix_(keep, keep)]
-    if len(lin):
-        Mkl = M[np.ix_(keep, lin)]
-        Mk = Mk - Mkl @ np.linalg.solve(M[np.ix_(lin, lin)], Mkl.T)
-    n_w, n_q, n_f = len(ix.base_angular), len(ix.actuators), len(ix.flexible)
-    b = np.concatenate([np.arange(n_w), n_w + n_q + np.arange(n_f)])  # [ω0; f] inside Mk
-    a = n_w + np.arange(n_q)
-    Mbb, Mbq, Mqq = Mk[np.ix_(b, b)], Mk[np.ix_(b, a)], Mk[np.ix_(a, a)]
-    # generalized force on b per unit of x = [f; ω0; ḟ]: F_b = S x with S = [[0, 0, 0], [K_f, 0, C_f]]
-    n_e = 2 * n_f + n_w
-    S = np.zeros((n_w + n_f, n_e))
-    S[n_w:, :n_f] = K_f
-    S[n_w:, n_f + n_w:] = C_f
-    Mstar = Mbb - Mbq @ np.linalg.solve(Mqq, Mbq.T)
-    A = np.zeros((n_e, n_e))
-    A[:n_f, n_f + n_w:] = np.eye(n_f)
-    A[n_f:, :] = -np.linalg.solve(Mstar, S)
-    C = np.zeros((n_w, n_e))
-    C[:, n_f:n_f + n_w] = np.eye(n_w)
-    Mdia = Mqq - Mbq.T @ np.linalg.solve(Mbb, Mbq)
-    Dx = -Mbq.T @ np.linalg.solve(Mbb, S)
-    B = np.linalg.solve(Mdia, Dx)
-    Mdia = (Mdia + Mdia.T) / 2
-    return ErrorModel(A_e=A, C_e=C, B_eps=B, M=Mdia, D_x=Dx, D_sym=np.zeros((n_q, n_q)), label=label)
+    flexible stiffness K_f and damping C_f (n_f×n_f) (``sms_cli.model.reduced.rest_matrices``), as the
+    LMI's ErrorModel: A_e, C_e, B_ε, M◇, D◇_x."""
+    r = rest_matrices(M, K_f, C_f, ix)
+    n_q = ix.actuators.size
+    return ErrorModel(A_e=r.A_e, C_e=r.C_e, B_eps=r.B_eps, M=r.M_dia, D_x=r.D_x, D_sym=np.zeros((n_q, n_q)), label=label)
 
 
 def state_labels(n_f_names: list[str]) -> list[str]:
@@ -81,27 +50,14 @@ def state_labels(n_f_names: list[str]) -> list[str]:
 
 
 def model_index(sm) -> tuple[ReducedIndex, list[str], list[str]]:
-    """Index sets of a SystemModel, the actuator names (wheels, then arm) and flexible names."""
-    act = np.concatenate([np.asarray(sm.idx.wheels, dtype=int), np.asarray(sm.idx.arm, dtype=int)])
-    flex = np.concatenate([np.asarray(sm.idx.passive, dtype=int), np.asarray(sm.idx.modes, dtype=int)])
-    names = [w.name for w in sm.wheels] + [j.name for j in sm.arm]
-    fnames = [s.joint for s in sm.springs]
-    for ap in sm.appendages:
-        fnames += [f"{ap.name}_mode{k + 1}" for k in range(len(ap.omega))]
-    ix = ReducedIndex(np.asarray(sm.idx.base_linear, dtype=int), np.asarray(sm.idx.base_angular, dtype=int),
-                      act, flex)
-    return ix, names, fnames
+    """Index sets of a SystemModel, the actuator names (wheels, then arm) and flexible names (``sm.reduced``)."""
+    red = sm.reduced
+    return red.ix, list(red.actuator_names), list(red.flexible_names)
 
 
 def flexible_stiffness(sm) -> tuple[np.ndarray, np.ndarray]:
-    """K_f, C_f of [passive joints; modes] (N m/rad or N/m; modal: Ω², 2ζΩ)."""
-    ks = [s.stiffness for s in sm.springs]
-    cs = [s.damping for s in sm.springs]
-    for ap in sm.appendages:
-        om, ze = np.asarray(ap.omega, dtype=float), np.asarray(ap.zeta, dtype=float)
-        ks += list(om**2)
-        cs += list(2 * ze * om)
-    return np.diag(np.asarray(ks, dtype=float)), np.diag(np.asarray(cs, dtype=float))
+    """K_f, C_f of [passive joints; modes] (N m/rad or N/m; modal: Ω², 2ζΩ) (``sm.reduced``)."""
+    return sm.reduced.K_f, sm.reduced.C_f
 
 
 def configuration(sm, q_base: np.ndarray, joints: dict[str, float]) -> np.ndarray:
@@ -134,6 +90,5 @@ def sample_configurations(sm, q_nom: np.ndarray, n: int, spread: float, seed: in
 
 def error_model(sm, q: np.ndarray, label: str = "") -> ErrorModel:
     """The reduced linearisation of a SystemModel at configuration q, at rest."""
-    ix, _, _ = model_index(sm)
-    K_f, C_f = flexible_stiffness(sm)
-    return error_model_at_rest(sm.mass_matrix(q), K_f, C_f, ix, label)
+    red = sm.reduced
+    return error_model_at_rest(sm.mass_matrix(q), red.K_f, red.C_f, red.ix, label)

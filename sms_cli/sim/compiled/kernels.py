@@ -80,7 +80,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
         ev = np.empty((2 * ns, 10))
         stops = [KernelCall(f"{mod}.stops:stop_step", (plant_tree, *stop_args[2:], q, v, np.zeros(sm.nv), 0.01, 0.0, q.copy(),
                                                        v.copy(), np.zeros(ns), np.zeros(ns), ev, np.zeros(1, dtype=np.int64),
-                                                       ws), cost=6.0)]
+                                                       ws, rigid[:4], none_f, none_f, none_f, none_f), cost=6.0)]
     return stops + [
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),

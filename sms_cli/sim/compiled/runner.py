@@ -29,10 +29,13 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     from sms_cli.sim.compiled.tree import unsupported_reason as tree_reason
     from sms_cli.sim.timing import uses_thrusters
 
+    ndi = spec.ndi is not None  # the NDI loop (ndi_runner) takes base-mounted modes and payload changes
     checks = [
-        (sm.n_modes > 0, "the model has flexible modes"),
+        (sm.n_modes > 0 and not ndi, "the model has flexible modes"),
+        (sm.n_modes > 0 and sm.base_modal_coupling is None, "an appendage is not mounted on the base"),
         (bool(sm.springs), "the model has spring joints"),
-        (spec.ndi is not None or spec.resolved_rate is not None, "the mission uses NDI or resolved-rate control"),
+        (spec.resolved_rate is not None, "the mission uses resolved-rate control"),
+        (ndi and (att_spec is not None or spec.arm is not None), "the mission combines NDI with an attitude or arm law"),
         (att_spec is not None and not isinstance(att_spec, _compiled_laws()),
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
@@ -42,7 +45,7 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
          "the mission has real thrusters (thrusters:), which the Python loop models"),
         (any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed"),
         (any(p.attitude_profile != "step" for p in spec.phases), "a phase has a smooth attitude profile"),
-        (any(p.attach or p.detach for p in spec.phases), "a phase attaches or releases a payload"),
+        (any(p.attach or p.detach for p in spec.phases) and not ndi, "a phase attaches or releases a payload"),
         (any(p.end_effector is not None for p in spec.phases), "a phase tracks an end-effector target"),
     ]
     for bad, why in checks:

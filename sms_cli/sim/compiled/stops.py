@@ -128,40 +128,44 @@ def _penetration(q, sj_q, sj_lower, sj_upper, k):
 
 
 @njit(**JIT)
-def _minv(tree_a, q, cols, ws):
-    """Columns ``cols`` of M⁻¹ at q (nv × len(cols)) on the rigid tree ``tree_a`` (the plant tree's arrays)."""
+def _minv(tree_a, modal_Bt, q, cols, ws):
+    """Columns ``cols`` of the inverse augmented mass matrix at q ((nv + n_η) × len(cols)) on the tree ``tree_a``
+    (the plant tree's arrays) with the base-mounted modes ``modal_Bt`` (6 × n_η; none: 6 × 0)."""
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v = tree_a
     nv = armature.shape[0]
     R_rel, p_rel = ws[8], ws[9]
     joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-    G = np.empty((nv, cols.shape[0]))
-    _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, np.zeros((6, 0)), cols, G, ws)
+    G = np.empty((nv + modal_Bt.shape[1], cols.shape[0]))
+    _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws)
     return G
 
 
 @njit(**JIT)
 def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound, since, q, v, tau, dt, t, q_out, v_out,
-              on_time, pen_max, ev, ev_n, ws):
+              on_time, pen_max, ev, ev_n, ws, modal, eta, etadot, eta_out, etadot_out):
     """One plant step of dt from time t under the stop law (``JointStops.step``): contacts decided at (q, v),
-    the RKMK4 step with the locked joints held, the arrivals' impulses on (q_out, v_out). ``on_time`` and
+    the RKMK4 step with the locked joints held, the arrivals' impulses on (q_out, v_out) and on the modal
+    rates etadot_out. ``modal`` = (Bᵀ, BᵀB, −Ω², −2ζΩ) of the base-mounted modes (``CompiledPlant``; none:
+    6×0, zeros, empty; eta, etadot and their outputs then empty). ``on_time`` and
     ``pen_max`` (per stop joint) accumulate the time on stop and the largest penetration after the step.
     Returns False if a complementarity problem did not terminate."""
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v = tree_a
     nv = v.shape[0]
     ns = sj_v.shape[0]
     none_f, none_i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    no_Bt, no_BtB = np.zeros((6, 0)), np.zeros((6, 6))
+    modal_Bt, modal_BtB, neg_omega2, neg_2zo = modal
     # contacts: the locked joints whose contact force pushes at (q, v)
     locked = _nonzero(side)
     n_locked = locked.shape[0]
     if n_locked:
         vd = np.empty(nv)
-        accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, none_f,
-                      none_f, none_i, none_i, none_f, none_f, none_f, q, v, none_f, none_f, tau, vd, none_f, ws)
+        accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+                      neg_omega2, neg_2zo, none_i, none_i, none_f, none_f, none_f, q, v, eta, etadot, tau, vd,
+                      np.empty(eta.shape[0]), ws)
         cols = np.empty(n_locked, dtype=np.int64)
         for i in range(n_locked):
             cols[i] = sj_v[locked[i]]
-        G = _minv(tree_a, q, cols, ws)
+        G = _minv(tree_a, modal_Bt, q, cols, ws)
         W = np.empty((n_locked, n_locked))
         b = np.empty(n_locked)
         for i in range(n_locked):
@@ -185,9 +189,9 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
     lock_v = np.empty(n_locked, dtype=np.int64)
     for i in range(n_locked):
         lock_v[i] = sj_v[locked[i]]
-    rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, none_f, none_f,
-               none_i, none_i, none_f, none_f, none_f, q, v, none_f, none_f, tau, dt, q_out, v_out, none_f.copy(),
-               none_f.copy(), ws, lock_v)
+    rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB, neg_omega2,
+               neg_2zo, none_i, none_i, none_f, none_f, none_f, q, v, eta, etadot, tau, dt, q_out, v_out, eta_out, etadot_out, ws,
+               lock_v)
     t1 = t + dt
     for i in range(n_locked):
         on_time[locked[i]] += dt
@@ -224,7 +228,7 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
             bounce[i] = arr and not rebound[j] and restitution > 0.0
             b[i] = u0[i] - (-restitution * u0[i] if bounce[i] else 0.0)
             cols[i] = sj_v[j]
-        G = _minv(tree_a, q_out, cols, ws)
+        G = _minv(tree_a, modal_Bt, q_out, cols, ws)
         W = np.empty((m, m))
         for i in range(m):
             for k in range(m):
@@ -232,11 +236,14 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
         mu = np.empty(m)
         if not complementarity(W, b, mu):
             return False
-        for a in range(nv):
+        for a in range(G.shape[0]):
             acc = 0.0
             for k in range(m):
                 acc += G[a, k] * (-o[k] * mu[k])
-            v_out[a] += acc
+            if a < nv:
+                v_out[a] += acc
+            else:
+                etadot_out[a - nv] += acc
         tol = 1e-9 * umax
         for i in range(m):
             j = S[i]

@@ -10,7 +10,7 @@ M ẍ + r(q, x, f) = [0; τ_a; 0] (r = bias − internal forces) give, eliminati
 
 so τ_a = M◇ v + n gives q̈_a = v exactly when the state is known. The controller measures the
 configuration q, the actuator rates and ω0 (gyro); it estimates x_e = [f; ω0; ḟ] with the
-observer (3.31) on the linearisation at rest of ``sms_cli.synthesis.reduced`` (re-evaluated at
+observer (3.31) on the linearisation at rest of ``sms_cli.model.reduced`` (re-evaluated at
 the measured configuration every control period, discretised exactly over the period):
 
     x̂̇ = A_e x̂ + B_τ τ_a + L (ω0 − C_e x̂),     B_τ = [0; −M*⁻¹ M_bq M_qq⁻¹]
@@ -31,27 +31,33 @@ acceleration the wheels must cancel (``sms_cli.sim.authority`` reports it per mo
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from sms_cli.model.system import SystemModel
-from sms_cli.sim.attitude_math import attitude_error, quat_conj, quat_mul
 from sms_cli.sim.interfaces import ArmRef, AttitudeRef, Sensed
-from sms_cli.synthesis.reduced import flexible_stiffness, model_index
+
+
+def _f64(x) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
 
 
 class NdiObserver:
-    """Combined wheel + arm law: returns actuator torques (wheels first, then arm joints)."""
+    """Combined wheel + arm law: returns actuator torques (wheels first, then arm joints). The arithmetic is
+    ``sms_cli.sim.compiled.ndi_law`` (the one implementation, which the compiled loop calls too); this
+    class holds the law's state and evaluates M and the bias forces with the SystemModel (Pinocchio)."""
 
     def __init__(self, sm: SystemModel, kp: np.ndarray, kv: np.ndarray, L: np.ndarray, attitude_gain: float,
                  period: float, wheel_feedforward: bool = True):
+        from sms_cli.sim.compiled.ndi_law import N_FLAGS
+
         self.sm = sm
-        self.ix, self.names, _ = model_index(sm)
-        self.K_f, self.C_f = flexible_stiffness(sm)
+        red = sm.reduced
+        self.ix, self.names = red.ix, red.actuator_names
+        self.K_f, self.C_f = red.K_f, red.C_f
         self.n_f = self.K_f.shape[0]
         self.n_r, self.n_m = len(sm.wheels), len(sm.arm)
         self.kp = np.broadcast_to(np.asarray(kp, float), (self.n_r + self.n_m,)).copy()
         self.kv = np.broadcast_to(np.asarray(kv, float), (self.n_r + self.n_m,)).copy()
-        self.L = np.asarray(L, float)
+        self.L = np.ascontiguousarray(L, dtype=float)
         n_e = 2 * self.n_f + 3
         if self.L.shape != (n_e, 3):
             raise ValueError(f"observer gain L must be {n_e}×3 for x = [f; ω0; ḟ], got {self.L.shape}")
@@ -59,157 +65,102 @@ class NdiObserver:
         self.wheel_feedforward = bool(wheel_feedforward)
         self.T = float(period)
         self.x_hat = np.zeros(n_e)
-        self.u = np.concatenate([self.ix.base_linear, self.ix.base_angular, self.ix.flexible])
         self.a = self.ix.actuators
-        self.wheel_limit = np.array([w.max_torque for w in sm.wheels])
+        self.wheel_limit = np.array([w.max_torque for w in sm.wheels], dtype=float)
         self.refresh = 0.01
-        a, u, w = self.a, self.u, self.ix.base_angular
-        self._ix_au, self._ix_uu, self._ix_ua, self._ix_aa = np.ix_(a, u), np.ix_(u, u), np.ix_(u, a), np.ix_(a, a)
-        self._ix_wr, self._ix_ww = np.ix_(w, a[: self.n_r]), np.ix_(w, w)
-        self._wheel_pinv = None
         if any(sm.model.parents[wh.joint_id] != sm.base_joint_id for wh in sm.wheels):
             raise ValueError("the NDI law needs the reaction wheels mounted on the base body")
-        self._disc = None
-        self._disc_q = None
+        n_q = self.n_r + self.n_m
+        self.flags = np.zeros(N_FLAGS, dtype=np.int64)  # ndi_law.STARTED, DISC_VALID, PINV_VALID, SATURATED
+        self.wheel_pinv = np.zeros((self.n_r, 3))
+        self.disc_q = np.zeros(self.n_m)
+        self.Phi, self.Gamma, self.B_tau = np.zeros((n_e, n_e)), np.zeros((n_e, n_e)), np.zeros((n_e, n_q))
         self._q_act_idx = np.array([a.q_index for a in sm.arm], dtype=int)
-        self.saturated = False
-        self._started = False
         self.wheel_rate_ref = np.zeros(self.n_r)  # desired wheel rates of the last control period (rad/s)
+        self._x = np.zeros(sm.nx)
+        self._tau = np.zeros(n_q)
+
+    @property
+    def saturated(self) -> bool:
+        """The last period's wheel torques exceeded their limits (the arm torques were recomputed)."""
+        from sms_cli.sim.compiled.ndi_law import SATURATED
+
+        return bool(self.flags[SATURATED])
 
     def model_changed(self) -> None:
         """A payload was attached or released: the observer's discretisation is rebuilt at the next period."""
-        self._disc = None
+        from sms_cli.sim.compiled.ndi_law import DISC_VALID
+
+        self.flags[DISC_VALID] = 0
 
     def reset(self) -> None:
         self.x_hat[:] = 0.0
-        self._started = False
-        self._disc = None
+        self.flags[:] = 0
 
-    # ------------------------------------------------------------------ estimation
-    def _full_velocity(self, M: np.ndarray, s: Sensed) -> np.ndarray:
-        """x̂ = [v_lin; ω0; q̇_a; ḟ̂] with v_lin from zero linear momentum."""
-        sm, nf = self.sm, self.n_f
-        x = np.zeros(sm.nx)
-        x[self.ix.base_angular] = s.omega
-        x[self.ix.actuators] = s.v[self.ix.actuators]
-        x[self.ix.flexible] = self.x_hat[nf + 3:]
-        lin = self.ix.base_linear
-        x[lin] = -np.linalg.solve(M[np.ix_(lin, lin)], M[lin] @ x)
-        return x
-
-    def _observer_step(self, M: np.ndarray, q_act: np.ndarray, y: np.ndarray, tau_a: np.ndarray) -> None:
-        """Exact ZOH propagation of the observer over one control period: x̂⁺ = Φ x̂ + Γ (B_τ τ + L y),
-        Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds, A_L = A_e − L C_e. The discretisation is refreshed when the
-        actuator configuration has moved by more than ``refresh`` (rad or m) since the last refresh."""
-        if self._disc is None or np.max(np.abs(q_act - self._disc_q)) > self.refresh:
-            self._disc = self._discretise(M)
-            self._disc_q = q_act.copy()
-        Phi, Gamma, B_tau = self._disc
-        self.x_hat = Phi @ self.x_hat + Gamma @ (B_tau @ tau_a + self.L @ y)
-
-    def _discretise(self, M: np.ndarray):
-        from sms_cli.synthesis.reduced import error_model_at_rest
-
-        em = error_model_at_rest(M, self.K_f, self.C_f, self.ix)
-        keep = np.concatenate([self.ix.base_angular, self.ix.actuators, self.ix.flexible])
-        lin = self.ix.base_linear
-        Mk = M[np.ix_(keep, keep)] - M[np.ix_(keep, lin)] @ np.linalg.solve(M[np.ix_(lin, lin)], M[np.ix_(lin, keep)])
-        n_w, n_q = 3, len(self.a)
-        b = np.concatenate([np.arange(n_w), n_w + n_q + np.arange(self.n_f)])
-        q = n_w + np.arange(n_q)
-        Mbb, Mbq, Mqq = Mk[np.ix_(b, b)], Mk[np.ix_(b, q)], Mk[np.ix_(q, q)]
-        Mstar = Mbb - Mbq @ np.linalg.solve(Mqq, Mbq.T)
-        B_tau = np.zeros((len(self.x_hat), n_q))
-        B_tau[self.n_f:] = -np.linalg.solve(Mstar, Mbq @ np.linalg.inv(Mqq))
-        A_L = em.A_e - self.L @ em.C_e
-        lam, V = np.linalg.eig(A_L)
-        if np.linalg.cond(V) < 1e8 and np.min(np.abs(lam)) > 1e-12:
-            Vi = np.linalg.inv(V)
-            e = np.exp(lam * self.T)
-            Phi = ((V * e) @ Vi).real
-            Gamma = ((V * ((e - 1.0) / lam)) @ Vi).real
-        else:  # defective or singular: the augmented-matrix exponential
-            n = len(self.x_hat)
-            aug = np.zeros((2 * n, 2 * n))
-            aug[:n, :n] = A_L
-            aug[:n, n:] = np.eye(n)
-            E = scipy.linalg.expm(aug * self.T)
-            Phi, Gamma = E[:n, :n], E[:n, n:]
-        return Phi, Gamma, B_tau
+    def kernel_args(self) -> tuple:
+        """The law's constants and state as ``ndi_law``'s kernels take them (the compiled loop's arguments):
+        index sets, gains, K_f, C_f, L, period, refresh, then the state arrays (updated in place)."""
+        ix = self.ix
+        return (ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.n_r, self.kp, self.kv, self.k_att,
+                self.wheel_feedforward, self.wheel_limit, _f64(self.K_f), _f64(self.C_f), self.L, self.T,
+                float(self.refresh), self.flags, self.wheel_pinv, self.wheel_rate_ref, self.disc_q, self.Phi, self.Gamma,
+                self.B_tau, self.x_hat)
 
     # ------------------------------------------------------------------ control
     def torques(self, s: Sensed, att_ref: AttitudeRef, arm_ref: ArmRef) -> np.ndarray:
         """Actuator torques (wheels, then arm) for this control period; call ``observe`` afterwards."""
-        sm = self.sm
-        M = sm.mass_matrix(s.q)
-        if not self._started:
-            self.x_hat[self.n_f:self.n_f + 3] = s.omega
-            self._started = True
-        x = self._full_velocity(M, s)
+        from sms_cli.sim.compiled.ndi_law import ndi_command, ndi_velocity
+
+        sm, ix = self.sm, self.ix
+        M = _f64(sm.mass_matrix(s.q))
+        omega, v = _f64(s.omega), _f64(s.v)
+        ndi_velocity(M, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, omega, v, self.x_hat, self.flags,
+                     self._x)
+        x = self._x
         v_hat, etadot_hat = x[: sm.nv], x[sm.nv:]
         eta_hat = self.x_hat[self.n_f - sm.n_modes:self.n_f] if sm.n_modes else np.zeros(0)
-        r = sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat)
         # passive spring joints are flexible coordinates: their positions are estimated too
-        u, a = self.u, self.a
-        Mau = M[self._ix_au]
-        sol = np.linalg.solve(M[self._ix_uu], np.column_stack([M[self._ix_ua], r[u]]))
-        M_dia = M[self._ix_aa] - Mau @ sol[:, :-1]
-        n_term = r[a] - Mau @ sol[:, -1]
-        # commands
-        v_cmd = np.zeros(len(a))
-        if self.n_m:
-            q_arm = s.q_arm
-            e, ed = arm_ref.q - q_arm, arm_ref.qd - s.qd_arm
-            v_cmd[self.n_r:] = arm_ref.qdd + self.kp[self.n_r:] * e + self.kv[self.n_r:] * ed
-        if self.n_r:
-            theta = attitude_error(att_ref.quat, s.quat)
-            R_rb = _rot(quat_mul(quat_conj(s.quat), att_ref.quat))  # base ← reference
-            w_des = R_rb @ att_ref.omega - self.k_att * theta
-            if self._wheel_pinv is None:  # wheels ride on the base: M_ωr = [I_s a_i] is constant
-                self._wheel_pinv = np.linalg.pinv(M[self._ix_wr])
-            dq_r = -self._wheel_pinv @ (M[self._ix_ww] @ (w_des - s.omega))
-            v_cmd[: self.n_r] = self.kv[: self.n_r] * dq_r
-            if self.wheel_feedforward:
-                v_cmd[: self.n_r] += self._wheel_feedforward(sol, v_cmd[self.n_r:])
-            self.wheel_rate_ref = s.v[a[: self.n_r]] + dq_r  # q̇_rd of the law, for Kraiem 2022 (3.67)
-        self._M, self._y, self._q_act = M, s.omega, s.q[self._q_act_idx]
-        return self._saturation_aware(M_dia, n_term, v_cmd)
-
-    def _wheel_feedforward(self, sol: np.ndarray, v_arm: np.ndarray) -> np.ndarray:
-        """Wheel accelerations q̈_rd that keep the base from rotating (ω̇0 = 0) while the arm accelerates at
-        ``v_arm``: the derivative of the wheel-rate reference of Kraiem 2022 (3.66), from the unactuated rows
-        ẍ_u = −M_uu⁻¹ (M_ua q̈_a + r_u) (``sol`` = M_uu⁻¹ [M_ua, r_u]), least-norm over the wheels."""
-        nr = self.n_r
-        w = slice(3, 6)  # u = [base linear, base angular, flexible]
-        G = sol[w, :nr]
-        return -np.linalg.pinv(G) @ (sol[w, nr:-1] @ v_arm + sol[w, -1])
-
-    def _saturation_aware(self, M_dia: np.ndarray, n_term: np.ndarray, v_cmd: np.ndarray) -> np.ndarray:
-        """τ = M◇ v + n, except that wheel torques are first clipped to their limits and the arm torques
-        then computed for the wheel accelerations those clipped torques really produce: the arm still
-        gets q̈_m = v_m when the wheels saturate (wheel authority is the usual bottleneck)."""
-        nr = self.n_r
-        tau = M_dia @ v_cmd + n_term
-        self.saturated = bool(nr and np.any(np.abs(tau[:nr]) > self.wheel_limit))
-        if not self.saturated:
-            return tau
-        r, m = slice(0, nr), slice(nr, None)
-        tau_r = np.clip(tau[:nr], -self.wheel_limit, self.wheel_limit)
-        qdd_r = np.linalg.solve(M_dia[r, r], tau_r - M_dia[r, m] @ v_cmd[m] - n_term[r])
-        tau[:nr] = tau_r
-        tau[m] = M_dia[m, r] @ qdd_r + M_dia[m, m] @ v_cmd[m] + n_term[m]
-        return tau
+        r = sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat)
+        ndi_command(M, _f64(r), ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.n_r, self.kp, self.kv,
+                    self.k_att, self.wheel_feedforward, self.wheel_limit, _f64(s.quat), omega, v, _f64(s.q_arm),
+                    _f64(att_ref.quat), _f64(att_ref.omega), _f64(arm_ref.q), _f64(arm_ref.qd), _f64(arm_ref.qdd),
+                    self.flags, self.wheel_pinv, self.wheel_rate_ref, self._tau)
+        self._M, self._y, self._q_act = M, omega, _f64(s.q[self._q_act_idx])
+        return self._tau.copy()
 
     def observe(self, tau_applied: np.ndarray) -> None:
         """Propagate the observer over the period with the torques actually applied (after saturation)."""
-        self._observer_step(self._M, self._q_act, self._y, tau_applied)
+        from sms_cli.sim.compiled.ndi_law import ndi_observe
+
+        ix = self.ix
+        ndi_observe(self._M, self._q_act, self._y, _f64(tau_applied), ix.base_linear, ix.base_angular, ix.actuators,
+                    ix.flexible, _f64(self.K_f), _f64(self.C_f), self.L, self.T, float(self.refresh), self.flags,
+                    self.disc_q, self.Phi, self.Gamma, self.B_tau, self.x_hat)
+
+    def warm_calls(self) -> list:
+        """The kernel calls of ``torques`` and ``observe`` on throw-away data (``sms_cli.sim.compiled.warmup``)."""
+        return ndi_warm_calls(self)
 
 
-def _rot(quat: np.ndarray) -> np.ndarray:
-    x, y, z, w = quat
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+def ndi_warm_calls(law: NdiObserver) -> list:
+    """``ndi_law``'s kernels with the argument types of their calls (both loops), on copies of the law's state."""
+    from sms_cli.sim.compiled.warmup import KernelCall
+
+    sm = law.sm
+    (lin, ang, act, flex, n_r, kp, kv, k_att, ff, wl, K_f, C_f, L, T, refresh, flags, pinv, wrr, dq, Phi, Gam, Bt,
+     xh) = law.kernel_args()
+    M = np.eye(sm.nx)
+    z = lambda n: np.zeros(n)  # noqa: E731
+    n_q, n_e = act.size, xh.size
+    mod = "sms_cli.sim.compiled.ndi_law"
+    return [
+        KernelCall(f"{mod}:ndi_velocity", (M, lin, ang, act, flex, z(3), z(sm.nv), xh.copy(), flags.copy(), z(sm.nx)), cost=0.5),
+        KernelCall(f"{mod}:ndi_command", (M, z(sm.nx), lin, ang, act, flex, n_r, kp, kv, k_att, ff, wl, np.array([0.0, 0, 0, 1]),
+                                          z(3), z(sm.nv), z(law.n_m), np.array([0.0, 0, 0, 1]), z(3), z(law.n_m), z(law.n_m),
+                                          z(law.n_m), flags.copy(), pinv.copy(), wrr.copy(), z(n_q)), cost=1.5),
+        KernelCall(f"{mod}:ndi_observe", (M, z(law.n_m), z(3), z(n_q), lin, ang, act, flex, K_f, C_f, L, T, refresh, flags.copy(),
+                                          dq.copy(), Phi.copy(), Gam.copy(), Bt.copy(), xh.copy()), cost=2.0),
+    ]
 
 
 def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_dir=None) -> NdiObserver:
