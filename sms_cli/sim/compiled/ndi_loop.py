@@ -268,7 +268,7 @@ def run_ticks_ndi(
             else:
                 rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                            neg_omega2, neg_2zo, no_i, no_i, no_f, no_f, no_f, q, v, eta, etadot, tau, dt, q_new, v_new, eta_new,
-                           etadot_new, work)
+                           etadot_new, work, no_i)  # no joint locked: stop_step's signature, one compilation
             t += dt
             st_t[steps] = t
             for a in range(nq):

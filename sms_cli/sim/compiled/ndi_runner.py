@@ -258,7 +258,7 @@ class NdiCompiledSimulation(CompiledSimulation):
             *step,
             KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, Bt, BtB, no2, n2z, none_i, none_i, none_f, none_f, none_f, q, v,
                                                       eta, ed, np.zeros(sm.nv), 0.01, q.copy(), v.copy(), eta.copy(), ed.copy(),
-                                                      ws), cost=5.0),
+                                                      ws, none_i), cost=5.0),
             KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
             KernelCall(f"{mod}.ndi_loop:run_ticks_ndi", (
                 *tree, *self.modal, wheel_v, np.ones(nw), np.ones(nw), 0.0, 0.0, True, *law_state, q[3:7].copy(), -1.0, 0.0,
