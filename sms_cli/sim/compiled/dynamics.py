@@ -104,7 +104,7 @@ def compose(R1, p1, R2, p2, R_out, p_out):
             R_out[a, b] = acc
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
     the joint's fixed placement composed with its motion (rotation Rj, translation tj)."""
@@ -336,14 +336,6 @@ def _solve_spd6(A, b, L, out):
 
 @njit(**_HOT)
 def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
-    """``_aba`` on the scratch arrays it uses (the first 16 of ``workspace``): one compiled ABA for
-    every caller, called, not inlined (inlining it tripled the compile time of its callers), and
-    with a short argument list (the whole 34-array workspace made each call cost ~0.7 µs)."""
-    _aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws[:16])
-
-
-@njit(**_JIT)
-def _aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
     ``root_dI`` (6×6) is added to the root body's inertia and ``root_f`` (6) to its bias force,
@@ -493,7 +485,7 @@ def quat_exp_mul(q, w, out):
     out[0], out[1], out[2], out[3] = x / nrm, y / nrm, z / nrm, ww / nrm
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def integrate(kind, axis, idx_q, idx_v, q, theta, out):
     """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
     n = kind.shape[0]
@@ -536,7 +528,7 @@ def integrate(kind, axis, idx_q, idx_v, q, theta, out):
             out[iq] = q[iq] + theta[iv]
 
 
-@njit(**_JIT)
+@njit(**_HOT)
 def dexpinv_neg(theta, v, out):
     """dexp⁻¹_{−θ}(v) = v + ½[θ, v] + 1/12 [θ, [θ, v]] on the free-flyer block (first 6),
     identity on the joints (``sms_cli.dynamics.integrator._dexpinv_neg``)."""
@@ -663,6 +655,8 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
 
 
+aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
+
 
 # ----------------------------------------------------------------------------- joint stops
 # The contact law of sms_cli.dynamics.joint_stops (which holds the rest of the stop law, for both
@@ -684,7 +678,7 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
         for a in range(nv):
             unit[a] = 0.0
         unit[cols[j]] = 1.0
-        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
         for a in range(nv):
             G[a, j] = col[a]
         for k in range(ne):
