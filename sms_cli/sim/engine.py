@@ -352,7 +352,7 @@ class Simulation:
                 from sms_cli.sim.compiled.runner import CompiledSimulation
 
                 self._compiled = CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law,
-                                                    arm_law=self.arm_law)
+                                                    arm_law=self.arm_law, rr=self.rr)
             kin = self._compiled.kinematics
             groups = kernel_groups(self.sm, loop_tree=kin.tree, recording=kin if self.rec is not None else None,
                                    loop=self._compiled)
@@ -360,7 +360,7 @@ class Simulation:
             buffer = getattr(self, "_buffer", None)
             groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
                                    recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law,
-                                   arm_law=self.arm_law)
+                                   arm_law=self.arm_law, rr=self.rr)
         warm(groups)
 
     # ------------------------------------------------------------------ main loop

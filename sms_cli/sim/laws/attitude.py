@@ -57,9 +57,11 @@ class TrackingError:
         omega = np.asarray(s.omega, dtype=float)
         wr, dwr = np.asarray(ref.omega, dtype=float), np.asarray(ref.omega_dot, dtype=float)
         if any(_floats(wr)) or any(_floats(dwr)):
+            from sms_cli.sim.compiled.profiles import reference_rates
+
             self.C = base_rotation(self.q)  # base → reference
-            self.omega_r = self.C.T @ wr
-            self.domega_r = self.C.T @ dwr
+            self.omega_r, self.domega_r = np.empty(3), np.empty(3)
+            reference_rates(self.q, _f64(wr), _f64(dwr), self.omega_r, self.domega_r)  # Cᵀ ω_ref, Cᵀ ω̇_ref
             self.dw = omega - self.omega_r
         else:
             self.omega_r = self.domega_r = _ZERO3
