@@ -154,11 +154,11 @@ def tracking_calls(sm, tree: tuple) -> list[KernelCall]:
     from sms_cli.sim.compiled.profiles import PROF_N
 
     parent, kind, axis, idx_v = tree[0], tree[1], tree[2], tree[11]
-    n, nv, nw, na = parent.shape[0], sm.nv, len(sm.idx.wheels), len(sm.arm)
+    n, nv, nw, na = parent.shape[0], sm.nv, len(sm.idx.wheels), max(len(sm.arm), 1)  # one joint: a valid SVD without an arm
     mod = "sms_cli.sim.compiled"
     w3, qe = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
     i64 = lambda x: np.asarray(x, dtype=np.int64)  # noqa: E731
-    arm_v, wheel_v = i64([a.v_index for a in sm.arm]), i64(sm.idx.wheels)
+    arm_v, wheel_v = i64([a.v_index for a in sm.arm] or [0]), i64(sm.idx.wheels)
     oR, op = np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3))
     par = np.zeros(RR_N)
     jac = (np.empty((6, nv)), np.empty((6, na)), np.empty((6, nw)))
