@@ -17,12 +17,13 @@ NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
-                  law=None, arm_law=None, loop=None, rr=None) -> list[list[KernelCall]]:
+                  law=None, arm_law=None, loop=None, rr=None, disturbed=False) -> list[list[KernelCall]]:
     """Groups of kernel calls (``warmup.warm``) of the SystemModel ``sm``'s simulation: the compiled
     loop's on ``loop_tree`` (the 12 arrays of ``SampleKinematics.tree``), else ``plant``'s (a ``CompiledPlant``; ``stops``: with the joint-stop
     kernels) and the Python loop's attitude ``law``'s (its ``warm_calls``, when it has kernels);
     ``recording``: the ``SampleKinematics`` a recording samples with, False for one recorded
-    without compiled kinematics, None for no recording; ``rr``: the Python loop's resolved rate."""
+    without compiled kinematics, None for no recording; ``rr``: the Python loop's resolved rate; ``disturbed``:
+    the Python loop adds disturbance wrenches."""
     from sms_cli.recording.encoding import warm_call
 
     groups: list[list[KernelCall]] = []
@@ -33,7 +34,7 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
             groups += plant.warm_calls(stops=stops)
         if hasattr(law, "warm_calls"):
             groups.append(law.warm_calls())
-        groups.append(python_arm_calls(sm, arm_law) + python_reference_calls(sm, rr))
+        groups.append(python_arm_calls(sm, arm_law) + python_reference_calls(sm, rr, disturbed))
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
     return groups
@@ -51,9 +52,10 @@ def python_arm_calls(sm, arm_law) -> list[KernelCall]:
     return calls
 
 
-def python_reference_calls(sm, rr=None) -> list[KernelCall]:
+def python_reference_calls(sm, rr=None, disturbed=False) -> list[KernelCall]:
     """The Python loop's reference kernels: the attitude profile (``references.AttitudeProfile.at``), the
-    reference rates (``laws.attitude.TrackingError``) and, with a resolved rate ``rr``, its joint rates."""
+    reference rates (``laws.attitude.TrackingError``), with a resolved rate ``rr`` its joint rates, and when
+    ``disturbed`` the disturbance wrench (``Simulation._disturbance``)."""
     from sms_cli.sim.compiled.profiles import PROF_N
 
     w3, qe = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
@@ -66,6 +68,9 @@ def python_reference_calls(sm, rr=None) -> list[KernelCall]:
         calls.append(KernelCall(f"{mod}.resolved_rate:joint_rates", (np.zeros((6, n)), np.zeros((6, nw)), np.zeros(6), 3,
                                                                      np.zeros(nw), 0.05, 0.05, np.ones(n), np.empty(n)),
                                 cost=1.5))
+    if disturbed:
+        calls.append(KernelCall(f"{mod}.disturbances:disturbance_wrench", (np.zeros((1, 10)), 0.0, sm.q0.astype(float),
+                                                                           np.empty(6)), cost=0.3))
     return calls
 
 
@@ -108,7 +113,8 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
             False, False, np.inf, *NO_LAW, np.zeros(PROF_N), -1.0, 0.0, *arm_args, *ref, *stop_args,
-            False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), 0.0, 1.0, 1, 0, 0, 1e9,
+            False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), np.zeros((0, 10)), 0.0,
+            1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
             np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)), e1, np.empty((1, sm.nq)),
             np.empty((1, sm.nv)), e2, np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
@@ -165,6 +171,8 @@ def tracking_calls(sm, tree: tuple) -> list[KernelCall]:
     return [
         KernelCall(f"{mod}.profiles:attitude_reference", (np.zeros(PROF_N), 0.0, np.empty(4), np.empty(3), np.empty(3)), cost=0.3),
         KernelCall(f"{mod}.profiles:reference_rates", (qe, w3, w3.copy(), np.empty(3), np.empty(3)), cost=0.2),
+        KernelCall(f"{mod}.disturbances:disturbance_wrench", (np.zeros((1, 10)), 0.0, sm.q0.astype(float), np.empty(6)),
+                   cost=0.3),
         KernelCall(f"{mod}.held_base:held_base_reaction", (np.eye(nv), np.zeros(nv), np.zeros(nv), np.empty(6)), cost=0.4),
         KernelCall(f"{mod}.resolved_rate:frame_jacobian", (parent, kind, axis, idx_v, oR, op, 0, np.eye(3), w3, np.empty(3),
                                                            jac[0]), cost=0.5),

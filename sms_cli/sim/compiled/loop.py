@@ -6,7 +6,7 @@ and the per-step states the recorder samples from.
 It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the missions the compiled
 engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, an arm with
 its law (``arm_laws.arm_torque``) following joint waypoints (``arm_laws.joint_reference``) and its
-joint stops (``stops.stop_step``), noiseless sensors, no disturbances; step or smooth attitude references
+joint stops (``stops.stop_step``), noiseless sensors, disturbance wrenches (``disturbances``); step or smooth attitude references
 (``profiles``), held-base phases (``held_base``) and end-effector tracking (``resolved_rate``).
 tests/test_compiled_engine.py and tests/test_compiled_arm.py check the two engines against each other.
 """
@@ -26,6 +26,7 @@ from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torqu
 from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
                                            momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
                                            world_placements)
+from sms_cli.sim.compiled.disturbances import disturbance_wrench
 from sms_cli.sim.compiled.held_base import held_base_reaction
 from sms_cli.sim.compiled.profiles import attitude_reference, reference_rates
 from sms_cli.sim.compiled.resolved_rate import track_end_effector
@@ -88,8 +89,9 @@ def run_ticks(
     # joint stops (stops.stop_step): on, table (arm index, v and q indices, limits), restitution; state in/out
     stop_on, sj_arm, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since,
     # held base (held_base.py) and end-effector tracking (resolved_rate.track_end_effector: on, parameters RR_*,
-    # rate limits, the end-effector frame; the tracked joint reference, in/out)
-    held, rr_on, rr_par, rr_rate, ee_joint, ee_R, ee_p, q_track,
+    # rate limits, the end-effector frame; the tracked joint reference, in/out); the disturbances' table
+    # (disturbances.py: rows DIST_*, none: no rows)
+    held, rr_on, rr_par, rr_rate, ee_joint, ee_R, ee_p, q_track, dist,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
     # state, in/out
@@ -174,6 +176,7 @@ def run_ticks(
     for a in range(base_lock.shape[0]):
         base_lock[a] = a
     tau_h, react = np.zeros(nv), np.empty(6)
+    dw = np.empty(6)  # the disturbances' wrench at a plant step
     # end-effector tracking: world placements, Jacobians, the target
     oR_w, op_w = np.empty((n, 3, 3)), np.empty((n, 3))
     J_ee, Jm_rr, Jr_rr, ee_pos, target = np.empty((6, nv)), np.empty((6, n_arm)), np.empty((6, nw)), np.empty(3), np.empty(3)
@@ -326,6 +329,10 @@ def run_ticks(
                 limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
+            if dist.shape[0]:  # the base wrench of the tick plus the disturbances at the step's start
+                disturbance_wrench(dist, t, q, dw)
+                for a in range(6):
+                    tau[a] = (T[a - 3] if (a >= 3 and law_on and thrusters) else 0.0) + dw[a]
             if stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
                                  tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work, held):

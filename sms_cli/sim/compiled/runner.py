@@ -37,7 +37,6 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
              for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
-        (bool(spec.disturbances), "the mission has disturbances"),
         (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
          "the mission has real thrusters (thrusters:), which the Python loop models"),
         (any(p.attach or p.detach for p in spec.phases), "a phase attaches or releases a payload"),
@@ -76,7 +75,10 @@ class CompiledSimulation:
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
         self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
-        self.record_wrench = records_base_wrench(spec)  # thrusters: /base/wrench (sms_cli.sim.timing)
+        self.record_wrench = records_base_wrench(spec)  # thrusters, disturbances: /base/wrench (sms_cli.sim.timing)
+        from sms_cli.sim.compiled.disturbances import disturbance_table
+
+        self.dist = disturbance_table(spec.disturbances)
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
 
     # ------------------------------------------------------------------ pieces
@@ -106,6 +108,14 @@ class CompiledSimulation:
         reaction = self._held_reactions(qs, vs[idx], tau_w[idx], tau_m) if held else None
         self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err, reaction=reaction,
                           wrench=None if wrench is None else wrench[idx])
+
+    def _disturbances(self, ts, qs) -> np.ndarray:
+        """The disturbances' wrench [f; n] (base frame) at each time and configuration (``disturbances``)."""
+        from sms_cli.sim.compiled.disturbances import disturbance_wrenches
+
+        out = np.empty((ts.size, 6))
+        disturbance_wrenches(self.dist, np.ascontiguousarray(ts, dtype=float), np.ascontiguousarray(qs, dtype=float), out)
+        return out
 
     def _held_reactions(self, qs, vs, tau_w, tau_m) -> np.ndarray:
         """The held base's support wrench [f; n] (base frame) at each state under its wheel and arm torques
@@ -272,10 +282,11 @@ class CompiledSimulation:
                           "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)), "x": np.empty((m, X_N))}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
+                    t_start, q_start = t, q.copy()  # the slice's first step starts here (its disturbances)
                     ticks, n_steps, code = run_ticks(
                         *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, att.params, settle_tol,
                         float(phase.settle_time), *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
-                        *rr_args, t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
+                        *rr_args, self.dist, t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
                         tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], tr["x"], st_t, st_q,
                         st_v, st_tw, ev, ev_n)
@@ -294,6 +305,9 @@ class CompiledSimulation:
                                 wrench = np.zeros((n_steps, 6))
                                 if law_on and thrusters:
                                     wrench[:, 3:6] = np.repeat(piece["base_torque"], self.n_sub, axis=0)[:n_steps]
+                                if self.dist.shape[0]:  # plus the disturbances at each step's start
+                                    wrench += self._disturbances(np.concatenate([[t_start], st_t[:n_steps - 1]]),
+                                                                 np.concatenate([q_start[None], st_q[:n_steps - 1]]))
                             hold = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
                                                            self.n_sub, axis=0)[:n_steps]
                             self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps],
