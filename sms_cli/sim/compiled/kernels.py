@@ -37,7 +37,21 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
         groups.append(python_arm_calls(sm, arm_law) + python_reference_calls(sm, rr, disturbed))
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
+        if loop is not None and recording and any(p.base_mode == "fixed" for p in loop.spec.phases):
+            groups[-1].append(held_reactions_call(sm, loop_tree))  # /base/reaction of the compiled loop's samples
+        if loop is not None and recording and loop.spec.disturbances:  # their /base/wrench
+            groups[-1].append(KernelCall("sms_cli.sim.compiled.disturbances:disturbance_wrenches", (
+                np.zeros((1, 10)), np.zeros(1), sm.q0.astype(float)[None].copy(), np.empty((1, 6))), cost=0.3))
     return groups
+
+
+def held_reactions_call(sm, tree: tuple) -> KernelCall:
+    """``held_base.held_base_reactions`` on one throw-away sample, as ``CompiledSimulation._held_reactions`` calls it."""
+    i64 = lambda x: np.asarray(x, dtype=np.int64)  # noqa: E731
+    nw, na = len(sm.idx.wheels), len(sm.arm)
+    return KernelCall("sms_cli.sim.compiled.held_base:held_base_reactions", (
+        *tree[:6], tree[9], tree[10], tree[11], i64(sm.idx.wheels), i64([a.v_index for a in sm.arm]),
+        sm.q0.astype(float)[None].copy(), np.zeros((1, sm.nv)), np.zeros((1, nw)), np.zeros((1, na)), np.empty((1, 6))), cost=2.0)
 
 
 def python_arm_calls(sm, arm_law) -> list[KernelCall]:
