@@ -218,16 +218,14 @@ class Simulation:
         return lambda q, v, e, ed: fd(q, v, e, ed, tau)
 
     def _disturbance(self, t: float, q: np.ndarray) -> np.ndarray:
-        w = np.zeros(6)
-        for d in self.spec.disturbances:
-            active = d.kind == "constant" or (d.start <= t < d.start + d.duration)
-            if not active:
-                continue
-            f, n = np.asarray(d.force, float), np.asarray(d.torque, float)
-            if d.frame == "inertial":
-                R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
-                f, n = R.T @ f, R.T @ n
-            w += np.concatenate([f, n])
+        """The disturbances' wrench [f; n] on the base (base frame) at t and q: the compiled loop's kernel
+        (``sms_cli.sim.compiled.disturbances.disturbance_wrench``)."""
+        from sms_cli.sim.compiled.disturbances import disturbance_table, disturbance_wrench
+
+        if getattr(self, "_dist_table", None) is None:
+            self._dist_table = disturbance_table(self.spec.disturbances)
+        w = np.empty(6)
+        disturbance_wrench(self._dist_table, float(t), np.ascontiguousarray(q, dtype=float), w)
         return w
 
     def _check(self, s: State) -> None:
@@ -358,7 +356,7 @@ class Simulation:
                 from sms_cli.sim.compiled.runner import CompiledSimulation
 
                 self._compiled = CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law,
-                                                    arm_law=self.arm_law)
+                                                    arm_law=self.arm_law, rr=self.rr)
             kin = self._compiled.kinematics
             groups = kernel_groups(self.sm, loop_tree=kin.tree, recording=kin if self.rec is not None else None,
                                    loop=self._compiled)
@@ -366,7 +364,7 @@ class Simulation:
             buffer = getattr(self, "_buffer", None)
             groups = kernel_groups(self.sm, plant=self.plant, stops=self.stops is not None,
                                    recording=(buffer.kinematics or False) if buffer is not None else None, law=self.att_law,
-                                   arm_law=self.arm_law)
+                                   arm_law=self.arm_law, rr=self.rr, disturbed=bool(self.spec.disturbances))
             if self.ndi is not None:  # the NDI law's kernels (sms_cli.sim.compiled.ndi_law)
                 groups.append(self.ndi.warm_calls())
         warm(groups)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from sms_cli.model.conventions import euler_zyx_to_matrix, quaternion_xyzw_from_matrix
-from sms_cli.sim.attitude_math import quat_exp, quat_log, quat_mul, quat_conj
+from sms_cli.sim.attitude_math import quat_log, quat_mul, quat_conj
 from sms_cli.sim.interfaces import ArmRef, AttitudeRef
 
 
@@ -16,24 +16,30 @@ def quintic(s: float) -> tuple[float, float, float]:
 
 
 class AttitudeProfile:
-    """Attitude reference of a phase, starting from the previous reference ``q_start``."""
+    """Attitude reference of a phase, starting from the previous reference ``q_start``; evaluated by the
+    compiled loop's kernel (``sms_cli.sim.compiled.profiles.attitude_reference``) from ``params``."""
 
     def __init__(self, q_start: np.ndarray, rpy_target, profile: str, slew_time: float | None):
         self.q_start = q_start
         if rpy_target is None:
             self.q_target, self.rotvec, self.T = q_start, np.zeros(3), None
-            return
-        self.q_target = quaternion_xyzw_from_matrix(euler_zyx_to_matrix(*rpy_target))
-        self.rotvec = quat_log(quat_mul(quat_conj(q_start), self.q_target))  # body-frame eigen-axis rotation
-        self.T = slew_time if profile == "smooth" else None
+        else:
+            self.q_target = quaternion_xyzw_from_matrix(euler_zyx_to_matrix(*rpy_target))
+            self.rotvec = quat_log(quat_mul(quat_conj(q_start), self.q_target))  # body-frame eigen-axis rotation
+            self.T = slew_time if profile == "smooth" else None
+        self.params = np.ascontiguousarray(np.concatenate([np.asarray(q_start, float), self.rotvec,
+                                                           [0.0 if self.T is None else float(self.T)],
+                                                           np.asarray(self.q_target, float)]), dtype=float)
 
     def at(self, tau: float) -> AttitudeRef:
         """Reference at time tau from the phase start."""
+        from sms_cli.sim.compiled.profiles import attitude_reference
+
         if self.T is None:
             return AttitudeRef(self.q_target)
-        p, dp, ddp = quintic(tau / self.T)
-        q = quat_mul(self.q_start, quat_exp(p * self.rotvec))
-        return AttitudeRef(q, dp / self.T * self.rotvec, ddp / self.T**2 * self.rotvec)
+        q, w, wd = np.empty(4), np.empty(3), np.empty(3)
+        attitude_reference(self.params, float(tau), q, w, wd)
+        return AttitudeRef(q, w, wd)
 
 
 class JointProfile:

@@ -17,12 +17,13 @@ NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
-                  law=None, arm_law=None, loop=None) -> list[list[KernelCall]]:
+                  law=None, arm_law=None, loop=None, rr=None, disturbed=False) -> list[list[KernelCall]]:
     """Groups of kernel calls (``warmup.warm``) of the SystemModel ``sm``'s simulation: the compiled
     loop's on ``loop_tree`` (the 12 arrays of ``SampleKinematics.tree``), else ``plant``'s (a ``CompiledPlant``; ``stops``: with the joint-stop
     kernels) and the Python loop's attitude ``law``'s (its ``warm_calls``, when it has kernels);
     ``recording``: the ``SampleKinematics`` a recording samples with, False for one recorded
-    without compiled kinematics, None for no recording."""
+    without compiled kinematics, None for no recording; ``rr``: the Python loop's resolved rate; ``disturbed``:
+    the Python loop adds disturbance wrenches."""
     from sms_cli.recording.encoding import warm_call
 
     groups: list[list[KernelCall]] = []
@@ -33,10 +34,24 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
             groups += plant.warm_calls(stops=stops)
         if hasattr(law, "warm_calls"):
             groups.append(law.warm_calls())
-        groups.append(python_arm_calls(sm, arm_law))
+        groups.append(python_arm_calls(sm, arm_law) + python_reference_calls(sm, rr, disturbed))
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
+        if loop is not None and recording and any(p.base_mode == "fixed" for p in loop.spec.phases):
+            groups[-1].append(held_reactions_call(sm, loop_tree))  # /base/reaction of the compiled loop's samples
+        if loop is not None and recording and loop.spec.disturbances:  # their /base/wrench
+            groups[-1].append(KernelCall("sms_cli.sim.compiled.disturbances:disturbance_wrenches", (
+                np.zeros((1, 10)), np.zeros(1), sm.q0.astype(float)[None].copy(), np.empty((1, 6))), cost=0.3))
     return groups
+
+
+def held_reactions_call(sm, tree: tuple) -> KernelCall:
+    """``held_base.held_base_reactions`` on one throw-away sample, as ``CompiledSimulation._held_reactions`` calls it."""
+    i64 = lambda x: np.asarray(x, dtype=np.int64)  # noqa: E731
+    nw, na = len(sm.idx.wheels), len(sm.arm)
+    return KernelCall("sms_cli.sim.compiled.held_base:held_base_reactions", (
+        *tree[:6], tree[9], tree[10], tree[11], i64(sm.idx.wheels), i64([a.v_index for a in sm.arm]),
+        sm.q0.astype(float)[None].copy(), np.zeros((1, sm.nv)), np.zeros((1, nw)), np.zeros((1, na)), np.empty((1, 6))), cost=2.0)
 
 
 def python_arm_calls(sm, arm_law) -> list[KernelCall]:
@@ -51,11 +66,35 @@ def python_arm_calls(sm, arm_law) -> list[KernelCall]:
     return calls
 
 
+def python_reference_calls(sm, rr=None, disturbed=False) -> list[KernelCall]:
+    """The Python loop's reference kernels: the attitude profile (``references.AttitudeProfile.at``), the
+    reference rates (``laws.attitude.TrackingError``), with a resolved rate ``rr`` its joint rates, and when
+    ``disturbed`` the disturbance wrench (``Simulation._disturbance``)."""
+    from sms_cli.sim.compiled.profiles import PROF_N
+
+    w3, qe = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
+    mod = "sms_cli.sim.compiled"
+    calls = [KernelCall(f"{mod}.profiles:attitude_reference", (np.zeros(PROF_N), 0.0, np.empty(4), np.empty(3), np.empty(3)),
+                        cost=0.3),
+             KernelCall(f"{mod}.profiles:reference_rates", (qe, w3, w3.copy(), np.empty(3), np.empty(3)), cost=0.2)]
+    if rr is not None:
+        n, nw = len(sm.arm), len(sm.wheels)
+        calls.append(KernelCall(f"{mod}.resolved_rate:joint_rates", (np.zeros((6, n)), np.zeros((6, nw)), np.zeros(6), 3,
+                                                                     np.zeros(nw), 0.05, 0.05, np.ones(n), np.empty(n)),
+                                cost=1.5))
+    if disturbed:
+        calls.append(KernelCall(f"{mod}.disturbances:disturbance_wrench", (np.zeros((1, 10)), 0.0, sm.q0.astype(float),
+                                                                           np.empty(6)), cost=0.3))
+    return calls
+
+
 def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     """The compiled loop's calls on throw-away data, callees first (ABA through the effective wheel
     inertia, the plant step), then ``run_ticks`` itself (the argument types of ``CompiledSimulation.run``;
     its arm and joint-stop arguments from ``loop``, the ``CompiledSimulation``, when given)."""
     from sms_cli.sim.compiled.dynamics import workspace
+    from sms_cli.sim.compiled.loop import RR_N, X_N
+    from sms_cli.sim.compiled.profiles import PROF_N
 
     plant_tree = tree[:7] + tree[9:]  # without mass and com
     nw = len(sm.idx.wheels)
@@ -80,16 +119,18 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
         ev = np.empty((2 * ns, 10))
         stops = [KernelCall(f"{mod}.stops:stop_step", (plant_tree, *stop_args[2:], q, v, np.zeros(sm.nv), 0.01, 0.0, q.copy(),
                                                        v.copy(), np.zeros(ns), np.zeros(ns), ev, np.zeros(1, dtype=np.int64),
-                                                       ws, rigid[:4], none_f, none_f, none_f, none_f), cost=6.0)]
+                                                       ws, rigid[:4], none_f, none_f, none_f, none_f, False), cost=6.0)]
     return stops + [
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
-            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *arm_args, *ref, *stop_args, 0.0, 1.0, 1, 0, 0, 1e9,
+            False, False, np.inf, *NO_LAW, np.zeros(PROF_N), -1.0, 0.0, *arm_args, *ref, *stop_args,
+            False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), np.zeros((0, 10)), 0.0,
+            1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
-            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), e1, np.empty((1, sm.nq)),
+            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)), e1, np.empty((1, sm.nq)),
             np.empty((1, sm.nv)), e2, np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
     ]
 
@@ -107,7 +148,7 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
     ctl, dyn, att = "sms_cli.sim.compiled.control", "sms_cli.sim.compiled.dynamics", "sms_cli.sim.compiled.attitude_laws"
     # the laws as attitude_law calls them (its callees first), each with the same arguments
     law_args = (qe, w3, w3, w3.copy(), I, np.zeros((3, 3)), w3.copy(), par, np.zeros(8), 0.0, np.empty(3))
-    return [
+    return tracking_calls(sm, tree) + [
         KernelCall(f"{dyn}:workspace", (n, sm.nq, sm.nv, 0), cost=1.3),
         KernelCall(f"{ctl}:error_quaternion", (q[3:7], q[3:7].copy(), np.empty(4)), cost=0.2),
         KernelCall(f"{ctl}:error_angle", (q[3:7], q[3:7].copy()), cost=0.2),
@@ -123,4 +164,36 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
                                                 np.empty(nw)), cost=0.3),
         KernelCall(f"{ctl}:may_reach_limit", (w, w, ones, ones, 0.1), cost=0.1),
         KernelCall(f"{ctl}:limited_torque", (w, w, ones, ones, 0.1, 0.0, 0.0, np.empty(nw)), cost=0.2),
+    ]
+
+
+def tracking_calls(sm, tree: tuple) -> list[KernelCall]:
+    """The loop's reference, held-base and end-effector tracking kernels (``profiles``, ``held_base``,
+    ``resolved_rate``) with the argument types of their calls in ``run_ticks``, callees first."""
+    from sms_cli.sim.compiled.loop import RR_N
+    from sms_cli.sim.compiled.profiles import PROF_N
+
+    parent, kind, axis, idx_v = tree[0], tree[1], tree[2], tree[11]
+    n, nv, nw, na = parent.shape[0], sm.nv, len(sm.idx.wheels), max(len(sm.arm), 1)  # one joint: a valid SVD without an arm
+    mod = "sms_cli.sim.compiled"
+    w3, qe = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
+    i64 = lambda x: np.asarray(x, dtype=np.int64)  # noqa: E731
+    arm_v, wheel_v = i64([a.v_index for a in sm.arm] or [0]), i64(sm.idx.wheels)
+    oR, op = np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3))
+    par = np.zeros(RR_N)
+    jac = (np.empty((6, nv)), np.empty((6, na)), np.empty((6, nw)))
+    return [
+        KernelCall(f"{mod}.profiles:attitude_reference", (np.zeros(PROF_N), 0.0, np.empty(4), np.empty(3), np.empty(3)), cost=0.3),
+        KernelCall(f"{mod}.profiles:reference_rates", (qe, w3, w3.copy(), np.empty(3), np.empty(3)), cost=0.2),
+        KernelCall(f"{mod}.disturbances:disturbance_wrench", (np.zeros((1, 10)), 0.0, sm.q0.astype(float), np.empty(6)),
+                   cost=0.3),
+        KernelCall(f"{mod}.held_base:held_base_reaction", (np.eye(nv), np.zeros(nv), np.zeros(nv), np.empty(6)), cost=0.4),
+        KernelCall(f"{mod}.resolved_rate:frame_jacobian", (parent, kind, axis, idx_v, oR, op, 0, np.eye(3), w3, np.empty(3),
+                                                           jac[0]), cost=0.5),
+        KernelCall(f"{mod}.resolved_rate:generalized_jacobians", (np.eye(nv), jac[0], arm_v, wheel_v, jac[1], jac[2]), cost=0.5),
+        KernelCall(f"{mod}.resolved_rate:joint_rates", (jac[1], jac[2], np.zeros(6), 3, np.zeros(nw), 0.05, 0.05, np.ones(na),
+                                                        np.empty(na)), cost=1.5),
+        KernelCall(f"{mod}.resolved_rate:track_end_effector", (
+            parent, kind, axis, idx_v, oR, op, 0, np.eye(3), w3, np.eye(nv), arm_v, wheel_v, np.zeros(nv), np.zeros(3),
+            par[10:13], par[0:3], 0.05, 0.05, np.ones(na), True, *jac, np.empty(na), np.empty(3)), cost=0.6),
     ]

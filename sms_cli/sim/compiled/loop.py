@@ -6,7 +6,8 @@ and the per-step states the recorder samples from.
 It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the missions the compiled
 engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, an arm with
 its law (``arm_laws.arm_torque``) following joint waypoints (``arm_laws.joint_reference``) and its
-joint stops (``stops.stop_step``), noiseless sensors, no disturbances, step attitude references.
+joint stops (``stops.stop_step``), noiseless sensors, disturbance wrenches (``disturbances``); step or smooth attitude references
+(``profiles``), held-base phases (``held_base``) and end-effector tracking (``resolved_rate``).
 tests/test_compiled_engine.py and tests/test_compiled_arm.py check the two engines against each other.
 """
 
@@ -25,11 +26,21 @@ from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torqu
 from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
                                            momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
                                            world_placements)
+from sms_cli.sim.compiled.disturbances import disturbance_wrench
+from sms_cli.sim.compiled.held_base import held_base_reaction
+from sms_cli.sim.compiled.profiles import attitude_reference, reference_rates
+from sms_cli.sim.compiled.resolved_rate import track_end_effector
 from sms_cli.sim.compiled.stops import stop_step
 
 RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED = 0, 1, 2, 3, 4
 # column blocks of the per-tick arm trace ``tr_arm`` (each n_arm wide, then the base motion's 6)
 ARM_ERR, ARM_REF, ARM_RATE_REF, ARM_RATE, ARM_TORQUE, ARM_STOP_TIME, ARM_STOP_PEN, ARM_BLOCKS = 0, 1, 2, 3, 4, 5, 6, 7
+# columns of the per-tick ``tr_x``: the attitude reference (xyzw), the end-effector error (m; NaN: not tracking),
+# the held base's reaction [f; n] (base frame; NaN: base not held)
+X_REF, X_EE_ERR, X_REACTION, X_N = 0, 4, 5, 11
+# ``rr_par``: gain K (3, 1/s), damping, threshold, control rate (Hz), generalized (1) or fixed-base (0) Jacobian,
+# target at the phase start (3, m, world), target velocity (3, m/s)
+RR_GAIN, RR_DAMPING, RR_THRESHOLD, RR_RATE, RR_GENERALIZED, RR_TARGET, RR_VEL, RR_N = 0, 3, 4, 5, 6, 7, 10, 13
 
 
 @njit(**JIT)
@@ -70,19 +81,23 @@ def run_ticks(
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
     # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
-    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, fd_step, q_ref,
+    law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, fd_step, att_prof,
     settle_tol, settle_time,
     # arm: coordinates, law (arm_laws.arm_torque; code −1: none) with its model's indices (arm_model_terms),
     # effort limits, the phase's joint reference (arm_laws.joint_reference) and its start time
     arm_q, arm_v, arm_code, arm_par, arm_wrap, arm_a, arm_p, effort, ref_times, ref_points, ref_step, t_phase0,
     # joint stops (stops.stop_step): on, table (arm index, v and q indices, limits), restitution; state in/out
     stop_on, sj_arm, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since,
+    # held base (held_base.py) and end-effector tracking (resolved_rate.track_end_effector: on, parameters RR_*,
+    # rate limits, the end-effector frame; the tracked joint reference, in/out); the disturbances' table
+    # (disturbances.py: rows DIST_*, none: no rows)
+    held, rr_on, rr_par, rr_rate, ee_joint, ee_R, ee_p, q_track, dist,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
     # state, in/out
     q, v, law_mem, eff_inertia, settled_since,
     # outputs per control tick
-    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm,
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_x,
     # outputs per plant step (state after the step and the wheel torque applied during it)
     st_t, st_q, st_v, st_tw,
     # joint-stop events (stops.py rows) and their count
@@ -101,7 +116,14 @@ def run_ticks(
     over the tick's steps) and the base motion ([base origin; base-body momentum], world;
     ``base_motion.base_kinematics``).
 
-    The law sees step references (ω_r = ω̇_r = 0), the constant inertia J_law with J̇ = 0 and the
+    The attitude reference of each tick is the phase's profile ``att_prof`` at t − t_phase0
+    (``profiles.attitude_reference``: step, or the smooth slew with its ω_ref, ω̇_ref, which the law sees in
+    the base frame, ``profiles.reference_rates``). ``held``: the base is held (its coordinates locked in the
+    plant step, the support's wrench in ``tr_x``). ``rr_on``: the arm's reference comes from the resolved rate
+    (``resolved_rate.track_end_effector`` on the target rr_par[RR_TARGET] + rr_par[RR_VEL] (t − t_phase0)),
+    integrated in q_track; ``tr_x`` gets per tick the columns X_* (reference, end-effector error, reaction).
+
+    The law sees the constant inertia J_law with J̇ = 0 and the
     internal momentum h from the wheels (body_code 0: G_law, Js_law, ``RigidBody``) or from the
     system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``), or the online
     inertia (body_code 2: ``SystemBody(online=True)``): J(q) the locked inertia (``system_inertia``) and
@@ -110,7 +132,6 @@ def run_ticks(
     nq = q.shape[0]
     nw = wheel_v.shape[0]
     n = parent.shape[0]
-    zero3 = np.zeros(3)
     zero33 = np.zeros((3, 3))
     h = np.zeros(3)
     T = np.zeros(3)
@@ -148,6 +169,17 @@ def run_ticks(
     J_on, Jd_on, J_pm = np.empty((3, 3)), np.empty((3, 3)), np.empty((2, 3, 3))
     dq, q_fd = np.empty(nv), np.empty(nq)
     R_fd, p_fd = np.empty((n, 3, 3)), np.empty((n, 3))
+    # the attitude reference of the tick (profiles.attitude_reference) and its rates in the base frame
+    q_ref, w_ref, wd_ref, om_r, dom_r = np.empty(4), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    # a held base: its coordinates locked in the plant step, the support's wrench in the trace
+    base_lock = np.empty(6 if held else 0, dtype=np.int64)
+    for a in range(base_lock.shape[0]):
+        base_lock[a] = a
+    tau_h, react = np.zeros(nv), np.empty(6)
+    dw = np.empty(6)  # the disturbances' wrench at a plant step
+    # end-effector tracking: world placements, Jacobians, the target
+    oR_w, op_w = np.empty((n, 3, 3)), np.empty((n, 3))
+    J_ee, Jm_rr, Jr_rr, ee_pos, target = np.empty((6, nv)), np.empty((6, n_arm)), np.empty((6, nw)), np.empty(3), np.empty(3)
     tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
     t = t0
     steps = 0
@@ -157,6 +189,8 @@ def run_ticks(
             omega[a] = v[3 + a]
         for i in range(nw):
             ws[i] = v[wheel_v[i]]
+        attitude_reference(att_prof, t - t_phase0, q_ref, w_ref, wd_ref)
+        ee_err = math.nan
         # control (held over the period)
         T[:] = 0.0
         tau_w[:] = 0.0
@@ -165,6 +199,7 @@ def run_ticks(
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
         if law_on:
             error_quaternion(q[3:7], q_ref, qe)
+            reference_rates(qe, w_ref, wd_ref, om_r, dom_r)
             if body_code == 2:  # SystemBody.inertia, inertia_rate
                 system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
                 for a in range(nv):
@@ -183,16 +218,31 @@ def run_ticks(
             else:
                 wheel_momentum(G_law, Js_law, omega, ws, h)
             if body_code == 2:
-                attitude_law(law_code, qe, omega, zero3, zero3, ws, J_on, Jd_on, h, G_law, Js_law, law_par, law_mem, t, T)
+                attitude_law(law_code, qe, omega, om_r, dom_r, ws, J_on, Jd_on, h, G_law, Js_law, law_par, law_mem, t, T)
             else:
-                attitude_law(law_code, qe, omega, zero3, zero3, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
+                attitude_law(law_code, qe, omega, om_r, dom_r, ws, J_law, zero33, h, G_law, Js_law, law_par, law_mem, t, T)
             if thrusters:
                 sat = clip_attitude_torque(T, torque_limit)
             else:
                 sat = allocate_and_clip(T, ws, A_pinv, null, spin, null_gain, target_speed, max_torque, tau_w)
         # arm: reference, law, effort limits
         if n_arm:
-            joint_reference(ref_times, ref_points, ref_step, t - t_phase0, ref_q, ref_qd, ref_qdd)
+            if rr_on:  # the resolved rate's joint rates, integrated into the tracked reference
+                world_placements(parent, R_rel, p_rel, oR_w, op_w)
+                if rr_par[RR_GENERALIZED] != 0.0:
+                    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
+                for a in range(3):
+                    target[a] = rr_par[RR_TARGET + a] + rr_par[RR_VEL + a] * (t - t_phase0)
+                ee_err = track_end_effector(parent, kind, axis, idx_v, oR_w, op_w, ee_joint, ee_R, ee_p, M_full, arm_v, wheel_v,
+                                            v, target, rr_par[RR_VEL:RR_VEL + 3], rr_par[RR_GAIN:RR_GAIN + 3],
+                                            rr_par[RR_DAMPING], rr_par[RR_THRESHOLD], rr_rate,
+                                            rr_par[RR_GENERALIZED] != 0.0, J_ee, Jm_rr, Jr_rr, ref_qd, ee_pos)
+                for i in range(n_arm):
+                    q_track[i] = q_track[i] + ref_qd[i] / rr_par[RR_RATE]
+                    ref_q[i] = q_track[i]
+                    ref_qdd[i] = 0.0
+            else:
+                joint_reference(ref_times, ref_points, ref_step, t - t_phase0, ref_q, ref_qd, ref_qdd)
             for i in range(n_arm):
                 q_arm[i] = q[arm_q[i]]
                 qd_arm[i] = v[arm_v[i]]
@@ -228,6 +278,21 @@ def run_ticks(
                 tr_arm[k, o + a] = q[a]
                 tr_arm[k, o + 3 + a] = mass[0] * (Rb[a, 0] * vc0 + Rb[a, 1] * vc1 + Rb[a, 2] * vc2)
         # trace (state at the tick)
+        for a in range(4):
+            tr_x[k, X_REF + a] = q_ref[a]
+        tr_x[k, X_EE_ERR] = ee_err
+        for a in range(6):
+            tr_x[k, X_REACTION + a] = math.nan
+        if held:  # the support's wrench under the tick's wheel and arm torques
+            mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
+            bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, n_full)
+            for i in range(nw):
+                tau_h[wheel_v[i]] = tau_w[i]
+            for i in range(n_arm):
+                tau_h[arm_v[i]] = tau_m[i]
+            held_base_reaction(M_full, n_full, tau_h, react)
+            for a in range(6):
+                tr_x[k, X_REACTION + a] = react[a]
         tr_t[k] = t
         tr_err[k] = error_angle(q[3:7], q_ref)
         for i in range(nw):
@@ -264,15 +329,19 @@ def run_ticks(
                 limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
+            if dist.shape[0]:  # the base wrench of the tick plus the disturbances at the step's start
+                disturbance_wrench(dist, t, q, dw)
+                for a in range(6):
+                    tau[a] = (T[a - 3] if (a >= 3 and law_on and thrusters) else 0.0) + dw[a]
             if stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
                                  tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work, (no_Bt, no_BtB, no_e, no_e), no_e,
-                                 no_e, no_e, no_e):
+                                 no_e, no_e, no_e, held):
                     return k + 1, steps, STOP_FAILED
             else:
                 rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, no_e,
                            no_e, no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work,
-                           no_i)  # no joint locked: the signature stop_step compiles, so rkmk4_step compiles once
+                           base_lock)  # empty unless the base is held: stop_step's signature, one compilation
             t += dt
             st_t[steps] = t
             for a in range(nq):  # element loops, not slice assignment: no broadcast check to compile

@@ -263,7 +263,7 @@ def run_ticks_ndi(
             if stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
                                  tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work, modal, eta, etadot, eta_new,
-                                 etadot_new):
+                                 etadot_new, False):
                     return k + 1, steps, STOP_FAILED
             else:
                 rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,

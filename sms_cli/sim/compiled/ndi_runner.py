@@ -252,7 +252,7 @@ class NdiCompiledSimulation(CompiledSimulation):
             step = [KernelCall(f"{mod}.stops:stop_step", (plant_tree, *stop_args[2:], q, v, np.zeros(sm.nv), 0.01, 0.0, q.copy(),
                                                           v.copy(), np.zeros(ns), np.zeros(ns), np.empty((2 * ns, EV_COLS)),
                                                           np.zeros(1, dtype=np.int64), ws, (Bt, BtB, no2, n2z), eta, ed,
-                                                          eta.copy(), ed.copy()), cost=7.0)]
+                                                          eta.copy(), ed.copy(), False), cost=7.0)]
         e1 = np.empty(0)
         loop = [
             *step,

@@ -34,19 +34,19 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         (sm.n_modes > 0 and not ndi, "the model has flexible modes"),
         (sm.n_modes > 0 and sm.base_modal_coupling is None, "an appendage is not mounted on the base"),
         (bool(sm.springs), "the model has spring joints"),
-        (spec.resolved_rate is not None, "the mission uses resolved-rate control"),
         (ndi and (att_spec is not None or spec.arm is not None), "the mission combines NDI with an attitude or arm law"),
+        (ndi and spec.resolved_rate is not None, "the mission combines NDI with resolved-rate control"),
+        (ndi and bool(spec.disturbances), "the mission combines NDI with disturbances"),
         (att_spec is not None and not isinstance(att_spec, _compiled_laws()),
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
              for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
-        (bool(spec.disturbances), "the mission has disturbances"),
         (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
          "the mission has real thrusters (thrusters:), which the Python loop models"),
-        (any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed"),
-        (any(p.attitude_profile != "step" for p in spec.phases), "a phase has a smooth attitude profile"),
         (any(p.attach or p.detach for p in spec.phases) and not ndi, "a phase attaches or releases a payload"),
-        (any(p.end_effector is not None for p in spec.phases), "a phase tracks an end-effector target"),
+        (ndi and any(p.base_mode == "fixed" for p in spec.phases), "a phase of an NDI mission holds the base fixed"),
+        (ndi and any(p.attitude_profile != "step" for p in spec.phases), "an NDI mission has a smooth attitude profile"),
+        (ndi and any(p.end_effector is not None for p in spec.phases), "an NDI mission tracks an end-effector target"),
     ]
     for bad, why in checks:
         if bad:
@@ -69,19 +69,23 @@ class CompiledSimulation:
     """One mission simulation by the compiled loop (see the module docstring)."""
 
     def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder, progress, att_law,
-                 chunk_steps: int = CHUNK_STEPS, arm_law=None):
+                 chunk_steps: int = CHUNK_STEPS, arm_law=None, rr=None):
         from sms_cli.sim.actuators import WheelArray
         from sms_cli.sim.engine import Progress
 
         self.sm, self.spec, self.rec = sm, spec, recorder
         self.law = att_law
         self.arm_law = arm_law
+        self.rr = rr  # the resolved rate (laws.resolved_rate.ResolvedRate) of the end-effector phases
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
         self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
-        self.record_wrench = records_base_wrench(spec)  # thrusters: /base/wrench (sms_cli.sim.timing)
+        self.record_wrench = records_base_wrench(spec)  # thrusters, disturbances: /base/wrench (sms_cli.sim.timing)
+        from sms_cli.sim.compiled.disturbances import disturbance_table
+
+        self.dist = disturbance_table(spec.disturbances)
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
 
     # ------------------------------------------------------------------ pieces
@@ -91,23 +95,47 @@ class CompiledSimulation:
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.kinematics(qs, vs)
 
-    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None) -> None:
-        """Offer the plant-step states to the recorder and write the samples it picks (``wrench``: the
-        thrusters' wrench on the base per step, for ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's
-        torques and joint reference per step)."""
+    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None,
+                held=False) -> None:
+        """Offer the plant-step states to the recorder and write the samples it picks (``ref_quat``: one
+        reference or one per step; ``wrench``: the thrusters' wrench on the base per step, for
+        ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's torques and joint reference per step; ``held``:
+        the base is held, its support's wrench on ``/base/reaction``)."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
         qs = qs[idx]
         n = idx.size
-        refs = np.broadcast_to(ref_quat, (n, 4))
+        refs = np.broadcast_to(ref_quat if np.ndim(ref_quat) == 1 else ref_quat[idx], (n, 4))
         err = attitude_error(refs, qs[:, 3:7]) if err_vec is None else err_vec
         none = np.zeros((n, 0))  # no modes
         n_arm = len(self.sm.arm)
         tau_m = np.zeros((n, n_arm)) if tau_m is None else tau_m[idx]
         joint_ref = np.zeros((n, n_arm)) if joint_ref is None else joint_ref[idx]
-        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err,
+        reaction = self._held_reactions(qs, vs[idx], tau_w[idx], tau_m) if held else None
+        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err, reaction=reaction,
                           wrench=None if wrench is None else wrench[idx])
+
+    def _disturbances(self, ts, qs) -> np.ndarray:
+        """The disturbances' wrench [f; n] (base frame) at each time and configuration (``disturbances``)."""
+        from sms_cli.sim.compiled.disturbances import disturbance_wrenches
+
+        out = np.empty((ts.size, 6))
+        disturbance_wrenches(self.dist, np.ascontiguousarray(ts, dtype=float), np.ascontiguousarray(qs, dtype=float), out)
+        return out
+
+    def _held_reactions(self, qs, vs, tau_w, tau_m) -> np.ndarray:
+        """The held base's support wrench [f; n] (base frame) at each state under its wheel and arm torques
+        (``held_base.held_base_reactions``)."""
+        from sms_cli.sim.compiled.held_base import held_base_reactions
+
+        T, sm = self.kinematics.tree, self.sm
+        out = np.empty((qs.shape[0], 6))
+        i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+        f64 = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
+        held_base_reactions(*T[:6], T[9], T[10], T[11], i64(sm.idx.wheels), i64([a.v_index for a in sm.arm]), f64(qs), f64(vs),
+                            f64(tau_w), f64(tau_m), out)
+        return out
 
     def _law_args(self):
         """run_ticks's law arguments: (code, parameters, J, G, Js, body code, J̇ step), from the law object (its
@@ -147,6 +175,29 @@ class CompiledSimulation:
         effort = np.array([a.max_effort for a in sm.arm], dtype=float)
         return arm_q, arm_v, code, par, wrap, a_idx, p_idx, effort
 
+    def _tracking_args(self, phase, q, q_arm_ref, held):
+        """run_ticks's held-base and tracking arguments for ``phase`` (loop.RR_* for ``rr_par``): held, on, the
+        parameters with the target at the phase start (its end-effector position added when relative), the
+        joint rate limits, the end-effector frame, and the tracked reference (from ``q_arm_ref``; in/out)."""
+        from sms_cli.sim.compiled.loop import RR_DAMPING, RR_GAIN, RR_GENERALIZED, RR_N, RR_RATE, RR_TARGET, RR_THRESHOLD, RR_VEL
+
+        n = len(self.sm.arm)
+        f_joint, f_R, f_p, _ = self.kinematics.frames
+        rr, ee = self.rr, phase.end_effector
+        on = ee is not None and rr is not None
+        par, rate = np.zeros(RR_N), np.ones(n)
+        if on:
+            target = np.asarray(ee.position, float)
+            if ee.relative_to_start:  # Simulation.run_python's ee_start
+                target = target + self._samples(q[None], np.zeros((1, self.sm.nv)))[0][0, -1, :3]
+            par[RR_GAIN:RR_GAIN + 3] = np.broadcast_to(rr.K, (3,))
+            par[RR_DAMPING], par[RR_THRESHOLD], par[RR_RATE] = rr.damping, rr.threshold, float(self.spec.control_rate)
+            par[RR_GENERALIZED] = float(rr.jacobian == "generalized")
+            par[RR_TARGET:RR_TARGET + 3], par[RR_VEL:RR_VEL + 3] = target, np.asarray(ee.velocity, float)
+            rate = np.ascontiguousarray(rr.max_rate, dtype=float)
+        return (held, on, par, rate, int(f_joint[-1]), np.ascontiguousarray(f_R[-1]), np.ascontiguousarray(f_p[-1]),
+                np.array(q_arm_ref, dtype=float))
+
     def _stop_args(self):
         """run_ticks's joint-stop arguments: on, the table's arrays, restitution, and the state arrays."""
         from sms_cli.dynamics.joint_stops import stop_table
@@ -176,7 +227,7 @@ class CompiledSimulation:
 
     # ------------------------------------------------------------------ main loop
     def run(self):
-        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED, run_ticks
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED, X_N, X_REF, run_ticks
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.engine import build_result, phase_event
         from sms_cli.sim.references import AttitudeProfile, JointProfile
@@ -199,6 +250,7 @@ class CompiledSimulation:
         q_arm_ref = q[arm_q].copy()
         q_att_ref = q[3:7].copy()
         t, steps = 0.0, 0
+        segment, held = 0, False  # Simulation._begin_phase's segment count; whether the base is held
         status, why = "completed", ""
         spans: list[tuple[int, float, float]] = []
         pieces: list[dict] = []
@@ -212,8 +264,14 @@ class CompiledSimulation:
                 t_phase0 = t
                 if self.rec is not None:
                     self.rec.write_event(t, "phase", phase_event(phase))
-                q_ref = AttitudeProfile(q_att_ref, phase.attitude, "step", None).q_target.astype(float)
-                law_on = phase.base_mode != "free-floating" and self.law is not None
+                if phase.attach or phase.detach or phase.base_mode == "fixed" or held:
+                    segment += 1
+                held = phase.base_mode == "fixed"
+                if held:
+                    v[:6] = 0.0  # the support takes the base's momentum at the phase start
+                att = AttitudeProfile(q_att_ref, phase.attitude, phase.attitude_profile, phase.slew_time)
+                law_on = phase.base_mode not in ("free-floating", "fixed") and self.law is not None
+                rr_args = self._tracking_args(phase, q, q_arm_ref, held)
                 thrusters = phase.base_mode == "free-flying" or spec.attitude_actuator == "thrusters"
                 torque_limit = np.inf if spec.attitude_torque_limit is None else float(spec.attitude_torque_limit)
                 settle_tol = float(phase.until_settled) if phase.until_settled is not None else -1.0
@@ -228,18 +286,20 @@ class CompiledSimulation:
                     tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
                           "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
                           "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m),
-                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6))}
+                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)), "x": np.empty((m, X_N))}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
+                    t_start, q_start = t, q.copy()  # the slice's first step starts here (its disturbances)
                     ticks, n_steps, code = run_ticks(
-                        *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, q_ref, settle_tol,
+                        *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, att.params, settle_tol,
                         float(phase.settle_time), *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
-                        t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
+                        *rr_args, self.dist, t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
-                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], st_t, st_q, st_v, st_tw,
-                        ev, ev_n)
+                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], tr["x"], st_t, st_q,
+                        st_v, st_tw, ev, ev_n)
                     piece = {k: a[:ticks] for k, a in tr.items()}
                     piece["phase"] = np.full(ticks, ip)
+                    piece["segment"] = np.full(ticks, segment)
                     pieces.append(piece)
                     if ticks:
                         last_T = piece["base_torque"][-1].copy()
@@ -252,10 +312,14 @@ class CompiledSimulation:
                                 wrench = np.zeros((n_steps, 6))
                                 if law_on and thrusters:
                                     wrench[:, 3:6] = np.repeat(piece["base_torque"], self.n_sub, axis=0)[:n_steps]
-                            held = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
+                                if self.dist.shape[0]:  # plus the disturbances at each step's start
+                                    wrench += self._disturbances(np.concatenate([[t_start], st_t[:n_steps - 1]]),
+                                                                 np.concatenate([q_start[None], st_q[:n_steps - 1]]))
+                            hold = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
                                                            self.n_sub, axis=0)[:n_steps]
-                            self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref,
-                                               wrench, held(4), held(1), ev[:ev_n[0]])
+                            self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps],
+                                               np.repeat(piece["x"][:, X_REF:X_REF + 4], self.n_sub, axis=0)[:n_steps],
+                                               wrench, hold(4), hold(1), ev[:ev_n[0]], held)
                     self.progress.update(t)
                     if code == NON_FINITE:
                         raise _Stop("the state became non-finite")
@@ -268,8 +332,8 @@ class CompiledSimulation:
                         break
                     tick0 += ticks
                 spans.append((ip, t_phase0, t))
-                q_att_ref = q_ref if phase.attitude is not None else q_att_ref
-                q_arm_ref = joints.final
+                q_att_ref = att.at(phase.duration).quat if phase.attitude is not None else q_att_ref
+                q_arm_ref = rr_args[-1].copy() if phase.end_effector is not None else joints.final
         except _Stop as exc:
             status, why = "diverged", str(exc)
             if self.rec is not None:
@@ -289,26 +353,40 @@ class CompiledSimulation:
                            "wheel_speed": v[wheel_v][None], "wheel_torque": filled[-1]["wheel_torque"][-1:],
                            "saturated": np.array([False]), "base_torque": last_T[None],
                            "momentum": np.concatenate([mom[0, 0:3], mom[0, 6:9]])[None], "energy": mom[0, 9:10],
-                           "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled)})
+                           "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled),
+                           "segment": np.array([segment]), "x": self._final_x_row(q, v, q_att_ref, held, filled)})
         trace = self._trace_arrays(pieces, nw, n_arm)
         return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
 
-    def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events) -> None:
-        """``_record`` of a slice's steps with its joint-stop events in time order (an event before the
-        samples at and after its time)."""
+    def _record_slice(self, times, qs, vs, tau_w, refs, wrench, tau_m, joint_ref, events, held=False) -> None:
+        """``_record`` of a slice's steps (``refs``: the attitude reference per step; ``held``: the base held)
+        with its joint-stop events in time order (an event before the samples at and after its time)."""
         start = 0
         for row in events:
             stop = int(np.searchsorted(times, row[0], side="left"))
             if stop > start:
                 sl = slice(start, stop)
-                self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
-                             tau_m=tau_m[sl], joint_ref=joint_ref[sl])
+                self._record(times[sl], qs[sl], vs[sl], tau_w[sl], refs[sl], wrench=None if wrench is None else wrench[sl],
+                             tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held)
                 start = stop
             self._write_events(row[None])
         if start < times.size:
             sl = slice(start, None)
-            self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
-                         tau_m=tau_m[sl], joint_ref=joint_ref[sl])
+            self._record(times[sl], qs[sl], vs[sl], tau_w[sl], refs[sl], wrench=None if wrench is None else wrench[sl],
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held)
+
+    def _final_x_row(self, q, v, q_att_ref, held, filled) -> np.ndarray:
+        """The loop.X_* row of the final state: the last reference, no end-effector error, the held base's
+        reaction under the last torques (the Python loop's last ``_trace``)."""
+        from sms_cli.sim.compiled.loop import ARM_TORQUE, X_N, X_REACTION, X_REF
+
+        row = np.full((1, X_N), np.nan)
+        row[0, X_REF:X_REF + 4] = q_att_ref
+        if held:
+            n = len(self.sm.arm)
+            tau_m = filled[-1]["arm"][-1:, ARM_TORQUE * n:(ARM_TORQUE + 1) * n]
+            row[0, X_REACTION:X_REACTION + 6] = self._held_reactions(q[None], v[None], filled[-1]["wheel_torque"][-1:], tau_m)[0]
+        return row
 
     def _final_arm_row(self, q, v, q_arm_ref, filled) -> np.ndarray:
         """The arm trace row of the final state (the Python loop's last ``_trace``): error to the last
@@ -345,14 +423,20 @@ class CompiledSimulation:
         a["saturated"] = cat("saturated").astype(bool)
         a["base_torque"], a["momentum"] = cat("base_torque", 3), cat("momentum", 6)
         n = a["t"].size
-        a.update({"ee_err": np.full(n, np.nan), "modal_peak": np.zeros(n), "base_reaction": np.full((n, 6), np.nan),
-                  "segment": np.zeros(n, dtype=int)})
+        from sms_cli.sim.compiled.loop import X_EE_ERR, X_N, X_REACTION
+
+        # the extra columns (EE error, held base's reaction); NaN, as in the Python loop, where a loop has none (NDI)
+        x = cat("x", X_N) if any("x" in p for p in pieces) else np.full((n, X_N), np.nan)
+        a.update({"ee_err": x[:, X_EE_ERR], "modal_peak": np.zeros(n), "base_reaction": x[:, X_REACTION:X_REACTION + 6],
+                  "segment": cat("segment").astype(int)})
         arm = cat("arm", 7 * n_arm + 6)
         block = lambda b: arm[:, b * n_arm:(b + 1) * n_arm]  # noqa: E731  (loop.ARM_* blocks)
         a.update({"joint_err": block(0), "joint_torque": block(4), "joint_stop_time": block(5),
                   "joint_stop_penetration": block(6)})
         if n_arm and n:
-            a.update({"joint_rate_ref": block(2), "joint_rate": block(3), "base_motion": arm[:, 7 * n_arm:]})
+            a.update({"joint_rate_ref": block(2), "joint_rate": block(3)})
+            if not np.isfinite(a["base_reaction"]).all(axis=1).any():  # the Python loop has none while the base is held
+                a["base_motion"] = arm[:, 7 * n_arm:]
         return a
 
 

@@ -17,11 +17,12 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
-from sms_cli.sim.compiled.dynamics import _minv_columns, accelerations, joint_transforms, rkmk4_step
+from sms_cli.sim.compiled.dynamics import _minv_columns, accelerations, joint_transforms, lock_joints, rkmk4_step
 
 UPPER, LOWER = 1, -1
 EV_ARRIVAL, EV_RELEASE = 0, 1
 EV_COLS = 10
+_BASE = np.arange(6, dtype=np.int64)  # the base's velocity coordinates (a held base)
 
 
 @njit(**JIT)
@@ -128,26 +129,53 @@ def _penetration(q, sj_q, sj_lower, sj_upper, k):
 
 
 @njit(**JIT)
-def _minv(tree_a, modal_Bt, q, cols, ws):
+def _minv(tree_a, modal_Bt, q, cols, ws, held):
     """Columns ``cols`` of the inverse augmented mass matrix at q ((nv + n_η) × len(cols)) on the tree ``tree_a``
-    (the plant tree's arrays) with the base-mounted modes ``modal_Bt`` (6 × n_η; none: 6 × 0)."""
+    (the plant tree's arrays) with the base-mounted modes ``modal_Bt`` (6 × n_η; none: 6 × 0); ``held``: of
+    the inverse of its free block (base rows ≈ 0; ``PinocchioPlant.inverse_mass_columns``), as the inverse
+    projected on the held base: G − G_·b (G_bb)⁻¹ G_b·, G the columns of the base and of ``cols``."""
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v = tree_a
     nv = armature.shape[0]
     R_rel, p_rel = ws[8], ws[9]
     joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-    G = np.empty((nv + modal_Bt.shape[1], cols.shape[0]))
-    _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws)
+    k, nx = cols.shape[0], nv + modal_Bt.shape[1]
+    if not held:
+        G = np.empty((nx, k))
+        _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws)
+        return G
+    all_cols = np.empty(6 + k, dtype=np.int64)
+    for i in range(6):
+        all_cols[i] = i
+    for i in range(k):
+        all_cols[6 + i] = cols[i]
+    Gall = np.empty((nx, 6 + k))
+    _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, all_cols, Gall, ws)
+    Gbb, x, y = np.empty((6, 6)), np.empty(6), np.empty(6)
+    for a in range(6):
+        for b in range(6):
+            Gbb[a, b] = Gall[a, b]
+    G = np.empty((nx, k))
+    for j in range(k):
+        for a in range(6):
+            y[a] = Gall[a, 6 + j]
+        _solve(Gbb, y, x)
+        for r in range(nx):
+            acc = Gall[r, 6 + j]
+            for a in range(6):
+                acc -= Gall[r, a] * x[a]
+            G[r, j] = acc
     return G
 
 
 @njit(**JIT)
 def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound, since, q, v, tau, dt, t, q_out, v_out,
-              on_time, pen_max, ev, ev_n, ws, modal, eta, etadot, eta_out, etadot_out):
+              on_time, pen_max, ev, ev_n, ws, modal, eta, etadot, eta_out, etadot_out, held):
     """One plant step of dt from time t under the stop law (``JointStops.step``): contacts decided at (q, v),
     the RKMK4 step with the locked joints held, the arrivals' impulses on (q_out, v_out) and on the modal
     rates etadot_out. ``modal`` = (Bᵀ, BᵀB, −Ω², −2ζΩ) of the base-mounted modes (``CompiledPlant``; none:
     6×0, zeros, empty; eta, etadot and their outputs then empty). ``on_time`` and
     ``pen_max`` (per stop joint) accumulate the time on stop and the largest penetration after the step.
+    ``held``: the base is held too (``PinocchioPlant(fixed=True)``: its coordinates 0-5 locked throughout).
     Returns False if a complementarity problem did not terminate."""
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v = tree_a
     nv = v.shape[0]
@@ -159,13 +187,15 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
     n_locked = locked.shape[0]
     if n_locked:
         vd = np.empty(nv)
+        etadd = np.empty(eta.shape[0])
         accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
-                      neg_omega2, neg_2zo, none_i, none_i, none_f, none_f, none_f, q, v, eta, etadot, tau, vd,
-                      np.empty(eta.shape[0]), ws)
+                      neg_omega2, neg_2zo, none_i, none_i, none_f, none_f, none_f, q, v, eta, etadot, tau, vd, etadd, ws)
+        if held:  # the held base's free accelerations (forward_dynamics_fixed_base)
+            lock_joints(parent, kind, axis, inertia, leaf_IA, armature, idx_v, ws[8], ws[9], modal_Bt, _BASE, vd, etadd, ws)
         cols = np.empty(n_locked, dtype=np.int64)
         for i in range(n_locked):
             cols[i] = sj_v[locked[i]]
-        G = _minv(tree_a, modal_Bt, q, cols, ws)
+        G = _minv(tree_a, modal_Bt, q, cols, ws, held)
         W = np.empty((n_locked, n_locked))
         b = np.empty(n_locked)
         for i in range(n_locked):
@@ -186,9 +216,12 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
                 locked[keep] = j
                 keep += 1
         n_locked = keep
-    lock_v = np.empty(n_locked, dtype=np.int64)
+    nb = 6 if held else 0
+    lock_v = np.empty(nb + n_locked, dtype=np.int64)
+    for i in range(nb):
+        lock_v[i] = i
     for i in range(n_locked):
-        lock_v[i] = sj_v[locked[i]]
+        lock_v[nb + i] = sj_v[locked[i]]
     rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB, neg_omega2,
                neg_2zo, none_i, none_i, none_f, none_f, none_f, q, v, eta, etadot, tau, dt, q_out, v_out, eta_out, etadot_out, ws,
                lock_v)
@@ -228,7 +261,7 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
             bounce[i] = arr and not rebound[j] and restitution > 0.0
             b[i] = u0[i] - (-restitution * u0[i] if bounce[i] else 0.0)
             cols[i] = sj_v[j]
-        G = _minv(tree_a, modal_Bt, q_out, cols, ws)
+        G = _minv(tree_a, modal_Bt, q_out, cols, ws, held)
         W = np.empty((m, m))
         for i in range(m):
             for k in range(m):

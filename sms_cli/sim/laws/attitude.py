@@ -18,7 +18,7 @@ import numpy as np
 
 from sms_cli.sim.laws.switching import check_smoothing
 from sms_cli.sim.interfaces import AttitudeRef, Sensed
-from sms_cli.sim.laws.plant_models import RigidBody, base_rotation
+from sms_cli.sim.laws.plant_models import RigidBody
 
 
 def _cross(a, b) -> np.ndarray:
@@ -43,7 +43,7 @@ def _floats(x) -> list:
 class TrackingError:
     """Attitude tracking error of the base at a control instant (see module docstring)."""
 
-    __slots__ = ("q", "C", "omega_r", "domega_r", "dw", "qv", "qw")
+    __slots__ = ("q", "omega_r", "domega_r", "dw", "qv", "qw")
 
     def __init__(self, s: Sensed, ref: AttitudeRef):
         from sms_cli.sim.compiled.control import error_quaternion
@@ -53,13 +53,13 @@ class TrackingError:
         w = float(self.q[3])
         self.qv = self.q[:3]
         self.qw = w
-        self.C = None
         omega = np.asarray(s.omega, dtype=float)
         wr, dwr = np.asarray(ref.omega, dtype=float), np.asarray(ref.omega_dot, dtype=float)
         if any(_floats(wr)) or any(_floats(dwr)):
-            self.C = base_rotation(self.q)  # base → reference
-            self.omega_r = self.C.T @ wr
-            self.domega_r = self.C.T @ dwr
+            from sms_cli.sim.compiled.profiles import reference_rates
+
+            self.omega_r, self.domega_r = np.empty(3), np.empty(3)
+            reference_rates(self.q, _f64(wr), _f64(dwr), self.omega_r, self.domega_r)  # Cᵀ ω_ref, Cᵀ ω̇_ref, C = R(q_e)
             self.dw = omega - self.omega_r
         else:
             self.omega_r = self.domega_r = _ZERO3

@@ -24,13 +24,21 @@ from sms_cli.sim.laws.plant_models import base_rotation
 
 
 def damped_pinv_solve(J: np.ndarray, x: np.ndarray, damping: float, threshold: float) -> tuple[np.ndarray, float]:
-    """Σ σ_i/(σ_i² + λ²) v_i u_iᵀ x with the adaptive λ above; returns (solution, λ²)."""
-    U, S, Vt = np.linalg.svd(J, full_matrices=False)
-    smin = float(S[-1]) if S.size else 0.0
-    lam2 = damping**2 * (1.0 - (smin / threshold) ** 2) if (threshold > 0 and smin < threshold) else 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        f = np.where(S**2 + lam2 > 0, S / (S**2 + lam2), 0.0)
-    return Vt.T @ (f * (U.T @ x)), lam2
+    """Σ σ_i/(σ_i² + λ²) v_i u_iᵀ x with the adaptive λ above (J with at most 6 rows); returns (solution, λ²).
+    Computed by the law's kernel (``sms_cli.sim.compiled.resolved_rate.joint_rates``), without rate limits."""
+    from sms_cli.sim.compiled.resolved_rate import joint_rates
+
+    J = np.asarray(J, dtype=float)
+    m, n = J.shape
+    A, b = np.zeros((6, n)), np.zeros(6)
+    A[6 - m:], b[6 - m:] = J, x
+    out = np.empty(n)
+    lam2 = joint_rates(A, np.zeros((6, 0)), b, 6 - m, np.zeros(0), float(damping), float(threshold), np.full(n, np.inf), out)
+    return out, float(lam2)
+
+
+def _f64(x) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
 
 
 def _rotvec(R: np.ndarray) -> np.ndarray:
@@ -86,7 +94,10 @@ class ResolvedRate:
         return J[:, sm.idx.arm], J[:, sm.idx.wheels]
 
     def joint_rates(self, s: Sensed, ref: EndEffectorRef) -> np.ndarray:
-        """Desired joint rates q̇_d (arm order) for the reference at this instant."""
+        """Desired joint rates q̇_d (arm order) for the reference at this instant (the kernel
+        ``sms_cli.sim.compiled.resolved_rate.joint_rates`` on Pinocchio's Jacobians)."""
+        from sms_cli.sim.compiled.resolved_rate import joint_rates
+
         sm = self.sm
         pose = sm.ee_pose(s.q)
         e = np.asarray(ref.position, dtype=float) - pose.translation
@@ -94,16 +105,12 @@ class ResolvedRate:
         Jm, Jr = self._jacobians(s.q)
         twist = np.concatenate([np.zeros(3), np.asarray(ref.velocity, dtype=float) + self.K * e])
         quat = getattr(ref, "quat", None)
-        rows = slice(0, 6) if quat is not None else slice(3, 6)
         if quat is not None:
             e_rot = _rotvec(base_rotation(np.asarray(quat, dtype=float)) @ pose.rotation.T)
             twist[:3] = np.asarray(getattr(ref, "omega", np.zeros(3)), dtype=float) + self.K_rot * e_rot
-        if Jr.shape[1]:
-            twist = twist - Jr @ np.asarray(s.wheel_speed, dtype=float)
-        qd, self.last_damping = damped_pinv_solve(Jm[rows], twist[rows], self.damping, self.threshold)
-        ratio = float(np.max(np.abs(qd) / self.max_rate)) if qd.size else 0.0
-        if ratio > 1.0:
-            qd = qd / ratio
+        qd = np.empty(Jm.shape[1])
+        self.last_damping = float(joint_rates(_f64(Jm), _f64(Jr), twist, 0 if quat is not None else 3,
+                                              _f64(s.wheel_speed), self.damping, self.threshold, self.max_rate, qd))
         return qd
 
     def torque(self, s: Sensed, ref: EndEffectorRef) -> np.ndarray:
