@@ -14,6 +14,11 @@ from sms_cli.sim.compiled.warmup import KernelCall
 # the attitude-law arguments of run_ticks when no law is configured (code, parameters, J, G, Js, body
 # code, difference step of J̇); a configured law's have the same types (CompiledSimulation._law_args)
 NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
+# run_ticks's momentum-law arguments without one (code 0, the model tuple of momentum_control, gains, state, last W);
+# a momentum law's have the same types (CompiledSimulation._momentum_args)
+NO_MOMENTUM_MODEL = (np.zeros(0, dtype=np.int64), 0.0, np.zeros(3), np.zeros((3, 0)), np.zeros((3, 3)), np.zeros((3, 0)),
+                     np.zeros(0), np.zeros((3, 0)), np.zeros((0, 0)))
+NO_MOMENTUM_LAW = (0, NO_MOMENTUM_MODEL, np.zeros(16), np.zeros(5), np.zeros(1))
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
@@ -87,10 +92,11 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
-            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *arm_args, *ref, *stop_args, 0.0, 1.0, 1, 0, 0, 1e9,
+            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *NO_MOMENTUM_LAW, *arm_args, *ref, *stop_args, 0.0, 1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
-            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), e1, np.empty((1, sm.nq)),
-            np.empty((1, sm.nv)), e2, np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
+            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((0, 3)), np.empty(0),
+            np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)), np.empty((2 * ns, 10)),
+            np.zeros(1, dtype=np.int64)), cost=6.0),
     ]
 
 
@@ -123,4 +129,23 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
                                                 np.empty(nw)), cost=0.3),
         KernelCall(f"{ctl}:may_reach_limit", (w, w, ones, ones, 0.1), cost=0.1),
         KernelCall(f"{ctl}:limited_torque", (w, w, ones, ones, 0.1, 0.0, 0.0, np.empty(nw)), cost=0.2),
+        *momentum_calls(),
+    ]
+
+
+def momentum_calls() -> list[KernelCall]:
+    """The momentum laws' kernels as run_ticks calls them (``momentum_control``; the law dispatch and the W
+    dispatch compile with them), on the types of ``NO_MOMENTUM_LAW``; also the W dispatch the runner calls at
+    each phase start (``runner.LyapunovSeries``)."""
+    from sms_cli.sim.compiled.momentum_laws import T_N
+
+    _, model, par, mem, _ = NO_MOMENTUM_LAW
+    q, v, ref = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]), np.zeros(6), np.array([0.0, 0.0, 0.0, 1.0])
+    mc, ml = "sms_cli.sim.compiled.momentum_control", "sms_cli.sim.compiled.momentum_laws"
+    return [
+        KernelCall(f"{ml}:momentum_lyapunov", (0, q, v, ref, *model, par, mem, np.empty(T_N)), cost=3.0),
+        KernelCall(f"{mc}:lyapunov_terms", (0, q, v, ref, model, par, mem, np.empty(T_N)), cost=0.5),
+        KernelCall(f"{mc}:locked_velocity", (v, model, np.empty(3)), cost=0.2),
+        KernelCall(f"{mc}:momentum_control", (0, q, v, ref, model, par, mem, np.zeros(0), np.empty(0), np.empty(6)),
+                   cost=10.0),
     ]

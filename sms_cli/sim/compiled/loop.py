@@ -25,6 +25,7 @@ from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torqu
 from sms_cli.sim.compiled.dynamics import (aba, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
                                            momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
                                            world_placements)
+from sms_cli.sim.compiled.momentum_control import locked_velocity, lyapunov_terms, momentum_control
 from sms_cli.sim.compiled.stops import stop_step
 
 RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED = 0, 1, 2, 3, 4
@@ -72,6 +73,8 @@ def run_ticks(
     # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
     law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, fd_step, q_ref,
     settle_tol, settle_time,
+    # momentum law instead (momentum_control; code 0: none): code, model tuple, gains, state and the last W, in/out
+    mom_code, mom_model, mom_par, mom_mem, mom_W,
     # arm: coordinates, law (arm_laws.arm_torque; code −1: none) with its model's indices (arm_model_terms),
     # effort limits, the phase's joint reference (arm_laws.joint_reference) and its start time
     arm_q, arm_v, arm_code, arm_par, arm_wrap, arm_a, arm_p, effort, ref_times, ref_points, ref_step, t_phase0,
@@ -82,9 +85,9 @@ def run_ticks(
     # state, in/out
     q, v, law_mem, eff_inertia, settled_since,
     # outputs per control tick
-    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm,
-    # outputs per plant step (state after the step and the wheel torque applied during it)
-    st_t, st_q, st_v, st_tw,
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_locked, tr_lyap, tr_wrench,
+    # outputs per plant step (state after the step and the wheel torque applied during it; the momentum law's W terms)
+    st_t, st_q, st_v, st_tw, st_lyap,
     # joint-stop events (stops.py rows) and their count
     ev, ev_n,
 ):
@@ -105,7 +108,11 @@ def run_ticks(
     internal momentum h from the wheels (body_code 0: G_law, Js_law, ``RigidBody``) or from the
     system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``), or the online
     inertia (body_code 2: ``SystemBody(online=True)``): J(q) the locked inertia (``system_inertia``) and
-    J̇ its central difference along v with the step fd_step, h as for body_code 1."""
+    J̇ its central difference along v with the step fd_step, h as for body_code 1.
+
+    A momentum law (mom_code > 0, ``momentum_control``) replaces the attitude law: its wheel torques (clipped)
+    and its base wrench (applied as an ideal source); ``tr_locked``/``tr_lyap``/``tr_wrench`` get per tick μ, the last W and the wrench
+    (``mom_W``, the phase start's or the last step's), ``st_lyap`` W and its terms after every step."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
@@ -149,6 +156,7 @@ def run_ticks(
     dq, q_fd = np.empty(nv), np.empty(nq)
     R_fd, p_fd = np.empty((n, 3, 3)), np.empty((n, 3))
     tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
+    wrench = np.zeros(6)
     t = t0
     steps = 0
     for k in range(n_ticks):
@@ -163,7 +171,16 @@ def run_ticks(
         sat = False
         joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
-        if law_on:
+        if mom_code > 0:
+            locked_velocity(v, mom_model, tr_locked[k])
+            tr_lyap[k] = mom_W[0]
+        if law_on and mom_code > 0:
+            sat = momentum_control(mom_code, q, v, q_ref, mom_model, mom_par, mom_mem, max_torque, tau_w, wrench)
+            for a in range(3):
+                T[a] = wrench[3 + a]
+            for a in range(6):
+                tr_wrench[k, a] = wrench[a]
+        elif law_on:
             error_quaternion(q[3:7], q_ref, qe)
             if body_code == 2:  # SystemBody.inertia, inertia_rate
                 system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
@@ -244,7 +261,10 @@ def run_ticks(
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)
         tau[:] = 0.0
-        if law_on and thrusters:
+        if law_on and mom_code > 0:
+            for a in range(6):
+                tau[a] = wrench[a]
+        elif law_on and thrusters:
             for a in range(3):
                 tau[3 + a] = T[a]
         live = nw > 0 and (may_reach_limit(ws, tau_w, eff_inertia, max_speed, n_sub * dt)
@@ -282,6 +302,8 @@ def run_ticks(
                 st_v[steps, a] = v_new[a]
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
+            if mom_code > 0:
+                mom_W[0] = lyapunov_terms(mom_code, q, v, q_ref, mom_model, mom_par, mom_mem, st_lyap[steps])
             steps += 1
         if stop_on:
             for j in range(ns):

@@ -53,13 +53,16 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
 
 
 def _compiled_laws():
-    from sms_cli.sim.laws.schema import (BacksteppingSpec, MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec,
-                                         TwistingSpec)
+    from sms_cli.sim.laws.schema import (BacksteppingSpec, FreeFlyingSpec, HierarchicalSpec, MrpFeedbackSpec,
+                                         QuaternionLyapunovSpec, QuaternionPdSpec, Se3PdSpec, SmcAttitudeSpec,
+                                         TwistingSpec, WheelsFreeFloatingSpec)
 
-    return (MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec)
+    return (MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec,
+            WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec, QuaternionLyapunovSpec)
 
 
-COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping")
+COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping", "wheels_free_floating",
+                      "free_flying", "hierarchical", "se3_pd", "quaternion_lyapunov")
 
 
 class CompiledSimulation:
@@ -88,10 +91,11 @@ class CompiledSimulation:
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.kinematics(qs, vs)
 
-    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None) -> None:
+    def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None,
+                extra=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks (``wrench``: the
         thrusters' wrench on the base per step, for ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's
-        torques and joint reference per step)."""
+        torques and joint reference per step; ``extra``: more topics, {topic: {field: values per step}})."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
@@ -103,8 +107,9 @@ class CompiledSimulation:
         n_arm = len(self.sm.arm)
         tau_m = np.zeros((n, n_arm)) if tau_m is None else tau_m[idx]
         joint_ref = np.zeros((n, n_arm)) if joint_ref is None else joint_ref[idx]
+        extra = None if extra is None else {k: {f: x[idx] for f, x in d.items()} for k, d in extra.items()}
         self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err,
-                          wrench=None if wrench is None else wrench[idx])
+                          wrench=None if wrench is None else wrench[idx], extra=extra)
 
     def _law_args(self):
         """run_ticks's law arguments: (code, parameters, J, G, Js, body code, J̇ step), from the law object (its
@@ -115,7 +120,7 @@ class CompiledSimulation:
         from sms_cli.sim.laws.plant_models import SystemBody
 
         law = self.law
-        if law is None:
+        if law is None or hasattr(law, "actuate"):  # none, or a momentum law (_momentum_args)
             return NO_LAW
         b = law.body
         _, _, J, G, Js, body_code, step = NO_LAW
@@ -126,6 +131,16 @@ class CompiledSimulation:
             J, G, Js = b.J, b.G, b.Js
         f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
         return int(law.code), f(law.par), f(J), f(G), f(Js), body_code, step
+
+    def _momentum_args(self):
+        """run_ticks's momentum-law arguments (``momentum_control``): code (0: none), the model tuple, gains, state
+        (the law's own ``mem``, so its ``lyapunov_terms`` reads what the loop wrote) and the last W (1,)."""
+        from sms_cli.sim.compiled.kernels import NO_MOMENTUM_LAW
+
+        law = self.law
+        if not hasattr(law, "actuate"):
+            return NO_MOMENTUM_LAW
+        return int(law.code), law.model_args(), law.par, law.mem, np.zeros(1)
 
     def _arm_args(self):
         """run_ticks's arm arguments: coordinates, law (its ``code``, parameter rows, wrap mask; −1: none),
@@ -174,6 +189,7 @@ class CompiledSimulation:
     # ------------------------------------------------------------------ main loop
     def run(self):
         from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED, run_ticks
+        from sms_cli.sim.compiled.momentum_control import locked_velocity
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.engine import build_result, phase_event
         from sms_cli.sim.references import AttitudeProfile, JointProfile
@@ -182,13 +198,16 @@ class CompiledSimulation:
         q, v = sm.q0.astype(float).copy(), sm.v0.astype(float).copy()
         nw = wh.n
         wheel_v = np.asarray(sm.idx.wheels, dtype=np.int64)
-        memory = self.law.memory if self.law is not None else np.zeros(4)
+        memory = self.law.memory if hasattr(self.law, "memory") else np.zeros(4)  # the attitude law's state
         eff = wh.spin.astype(float).copy()
         fr = spec.wheel_friction
         wheel_args = (wheel_v, np.ascontiguousarray(wh.A_pinv), np.ascontiguousarray(wh.null), wh.spin.astype(float),
                       float(spec.allocation.null_space_gain), float(spec.allocation.target_speed),
                       wh.max_torque.astype(float), wh.max_speed.astype(float), float(fr.coulomb), float(fr.viscous))
         law_args = self._law_args()
+        mom_args = self._momentum_args()
+        mlaw = mom_args[0] > 0
+        lyap = LyapunovSeries(self.law) if mlaw else None
         arm_args = self._arm_args()
         stop_args = self._stop_args()
         n_arm, ns, stop_on = len(sm.arm), self.stop_table.n, stop_args[0]
@@ -202,7 +221,8 @@ class CompiledSimulation:
         last_T = np.zeros(3)
         if self.rec is not None:  # the initial state is part of the recording
             self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
-                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None])
+                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None],
+                         extra=lyap.topic(lyap.terms(q, v, q_att_ref)[None]) if mlaw else None)
         wall0 = time.perf_counter()
         try:
             for ip, phase in enumerate(spec.phases):
@@ -215,6 +235,8 @@ class CompiledSimulation:
                 torque_limit = np.inf if spec.attitude_torque_limit is None else float(spec.attitude_torque_limit)
                 settle_tol = float(phase.until_settled) if phase.until_settled is not None else -1.0
                 settled = np.array([np.nan])
+                if mlaw:  # W at the phase start (the Python loop's _lyapunov before the first tick)
+                    mom_args[4][0] = lyap.phase_start(ip, q, v, q_ref)
                 joints = JointProfile(q_arm_ref, [a.name for a in sm.arm], phase.waypoints, phase.joint_profile)
                 ref_times, ref_points = joints.arrays
                 n_ticks = int(round(phase.duration * spec.control_rate))
@@ -225,17 +247,19 @@ class CompiledSimulation:
                     tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
                           "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
                           "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m),
-                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6))}
+                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)), "locked": np.empty((m if mlaw else 0, 3)),
+                          "lyapunov": np.empty(m if mlaw else 0), "wrench": np.zeros((m if mlaw else 0, 6))}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
+                    st_lyap = np.empty((ms if mlaw else 0, lyap.width if mlaw else 0))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
                     ticks, n_steps, code = run_ticks(
                         *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, q_ref, settle_tol,
-                        float(phase.settle_time), *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
+                        float(phase.settle_time), *mom_args, *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
                         t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
-                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], st_t, st_q, st_v, st_tw,
-                        ev, ev_n)
-                    piece = {k: a[:ticks] for k, a in tr.items()}
+                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], tr["locked"],
+                        tr["lyapunov"], tr["wrench"], st_t, st_q, st_v, st_tw, st_lyap, ev, ev_n)
+                    piece = {k: a[:ticks] for k, a in tr.items() if mlaw or k not in ("locked", "lyapunov", "wrench")}
                     piece["phase"] = np.full(ticks, ip)
                     pieces.append(piece)
                     if ticks:
@@ -243,16 +267,21 @@ class CompiledSimulation:
                     if n_steps:
                         t = float(st_t[n_steps - 1])
                         steps += n_steps
+                        if mlaw:
+                            lyap.add(ip, st_lyap[:n_steps])
                         if self.rec is not None:
                             wrench = None
                             if self.record_wrench:  # the law's torque of each tick, held over its plant steps
                                 wrench = np.zeros((n_steps, 6))
-                                if law_on and thrusters:
+                                if law_on and mlaw:  # a momentum law's whole wrench (ideal source)
+                                    wrench[:] = np.repeat(piece["wrench"], self.n_sub, axis=0)[:n_steps]
+                                elif law_on and thrusters:
                                     wrench[:, 3:6] = np.repeat(piece["base_torque"], self.n_sub, axis=0)[:n_steps]
                             held = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
                                                            self.n_sub, axis=0)[:n_steps]
                             self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref,
-                                               wrench, held(4), held(1), ev[:ev_n[0]])
+                                               wrench, held(4), held(1), ev[:ev_n[0]],
+                                               lyap.topic(st_lyap[:n_steps]) if mlaw else None)
                     self.progress.update(t)
                     if code == NON_FINITE:
                         raise _Stop("the state became non-finite")
@@ -287,12 +316,23 @@ class CompiledSimulation:
                            "saturated": np.array([False]), "base_torque": last_T[None],
                            "momentum": np.concatenate([mom[0, 0:3], mom[0, 6:9]])[None], "energy": mom[0, 9:10],
                            "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled)})
+            if mlaw:  # μ at the final state and the last step's W (the Python loop's last _trace)
+                mu = np.empty((1, 3))
+                locked_velocity(v, mom_args[1], mu[0])
+                pieces[-1].update({"locked": mu, "lyapunov": mom_args[4].copy()})
         trace = self._trace_arrays(pieces, nw, n_arm)
-        return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
+        if mlaw:
+            trace["locked"], trace["lyapunov"] = (np.concatenate([p[k] for p in pieces]) for k in ("locked", "lyapunov"))
+        result = build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
+        if mlaw:
+            lyap.metrics(result, spans)
+        return result
 
-    def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events) -> None:
+    def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events, extra=None) -> None:
         """``_record`` of a slice's steps with its joint-stop events in time order (an event before the
         samples at and after its time)."""
+        if extra is not None and events.shape[0]:
+            raise NotImplementedError("more topics and joint-stop events in one slice")  # no momentum law has an arm
         start = 0
         for row in events:
             stop = int(np.searchsorted(times, row[0], side="left"))
@@ -305,7 +345,7 @@ class CompiledSimulation:
         if start < times.size:
             sl = slice(start, None)
             self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
-                         tau_m=tau_m[sl], joint_ref=joint_ref[sl])
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], extra=extra)
 
     def _final_arm_row(self, q, v, q_arm_ref, filled) -> np.ndarray:
         """The arm trace row of the final state (the Python loop's last ``_trace``): error to the last
@@ -351,6 +391,54 @@ class CompiledSimulation:
         if n_arm and n:
             a.update({"joint_rate_ref": block(2), "joint_rate": block(3), "base_motion": arm[:, 7 * n_arm:]})
         return a
+
+
+class LyapunovSeries:
+    """A momentum law's W and its terms as the Python loop keeps them (``Simulation._lyapunov``): evaluated at each
+    phase start and after every plant step, recorded on ``/control/lyapunov`` (the law's ``terms``, in name order)
+    and summarised per phase (``sms_cli.sim.laws.momentum.lyapunov_metrics``)."""
+
+    def __init__(self, law):
+        from sms_cli.sim.compiled import momentum_laws as K
+
+        self.law = law
+        self.width = K.T_N
+        self.names = sorted(law.terms)
+        self.cols = [K.TERM_NAMES.index(n) for n in self.names]
+        self._W, self._stage, self._pos, self._phase = K.T_W, K.T_STAGE, K.T_POSITION_ERROR, []
+        self.rows: list[np.ndarray] = []
+
+    def terms(self, q, v, ref) -> np.ndarray:
+        """The law's W terms (T_N,) on (q, v) for the reference ``ref``, with its current state."""
+        from sms_cli.sim.compiled import momentum_laws as K
+
+        out = np.empty(self.width)
+        K.momentum_lyapunov(int(self.law.code), np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
+                            np.ascontiguousarray(ref, dtype=float), *self.law.model_args(), self.law.par, self.law.mem, out)
+        return out
+
+    def phase_start(self, ip: int, q, v, ref) -> float:
+        """W at phase ``ip``'s start (added to the series); returned for the loop's first ticks."""
+        row = self.terms(q, v, ref)
+        self.add(ip, row[None])
+        return float(row[self._W])
+
+    def add(self, ip: int, rows: np.ndarray) -> None:
+        self.rows.append(rows.copy())
+        self._phase.append(np.full(rows.shape[0], ip))
+
+    def topic(self, rows: np.ndarray) -> dict:
+        """``/control/lyapunov`` of these rows: {field: values}."""
+        return {"/control/lyapunov": {n: rows[:, c] for n, c in zip(self.names, self.cols)}}
+
+    def metrics(self, result, spans) -> None:
+        from sms_cli.sim.laws.momentum import lyapunov_metrics
+
+        if not self.rows:
+            return lyapunov_metrics(result, spans, np.zeros(0, dtype=int), np.zeros(0))
+        a, phase = np.concatenate(self.rows), np.concatenate(self._phase)
+        lyapunov_metrics(result, spans, phase, a[:, self._W], a[:, self._stage] if "stage" in self.names else None,
+                         a[:, self._pos] if "position_error" in self.names else None)
 
 
 class _Stop(Exception):
