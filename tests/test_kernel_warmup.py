@@ -72,7 +72,7 @@ SIGNATURES = textwrap.dedent('''
     from sms_cli.model.summary import model_summary
     import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.recording.encoding as B
     import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A, sms_cli.sim.compiled.arm_laws as R
-    import sms_cli.sim.compiled.momentum_laws as Mo
+    import sms_cli.sim.compiled.momentum_laws as Mo, sms_cli.sim.compiled.momentum_control as Mc
 
     loaded = load_mission(sys.argv[1])
     sm = compile_system(loaded)
@@ -85,7 +85,7 @@ SIGNATURES = textwrap.dedent('''
     with rec:
         sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
         sim.warm_up()
-        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
+        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo, Mc) for n in dir(m) if hasattr(getattr(m, n), "signatures")}
         before = {k.py_func.__name__: len(k.signatures) for k in kernels}
         res = sim.run()
         rec.finish(res.status)
@@ -102,7 +102,8 @@ SIGNATURES = textwrap.dedent('''
                                              ("missions/astrobee_slew_backstepping", "compiled"),
                                              ("missions/caldera_eo", "python, compiled plant"),
                                              ("tests/data/compiled_law_backstepping", "python"),
-                                             ("tests/data/momentum_offset", "python")])
+                                             ("tests/data/momentum_offset", "python"),
+                                             ("tests/data/momentum_hierarchical", "compiled")])
 def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     """Every kernel the run calls was called by the warm-up with the same argument types: no
     dispatcher gains a signature during the run (the compiled loop with mrp_feedback, with smc and a
@@ -110,7 +111,8 @@ def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     stops (astrobee_arm), its computed-torque law on the attitude-held model with wheels (caldera_s2_arm),
     the online inertia J(q) with an arm (astrobee_slew_backstepping); the Python loop with the compiled
     plant, an arm law on its model, joint stops and a recording (caldera_eo); the Python loop running an attitude law's kernels, with the
-    SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W)."""
+    SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W; the compiled loop
+    running a momentum law, its W each step and at each phase start)."""
     script = tmp_path / "sigs.py"
     script.write_text(SIGNATURES)
     out = subprocess.run([sys.executable, str(script), str(ROOT / f"{mission}.yaml"), str(tmp_path / "r.mcap"),
