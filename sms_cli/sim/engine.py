@@ -340,7 +340,7 @@ class Simulation:
                 from sms_cli.sim.compiled.runner import CompiledSimulation
 
                 self._compiled = CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law,
-                                                    arm_law=self.arm_law)
+                                                    arm_law=self.arm_law, att_spec=self.att_spec)
             kin = self._compiled.kinematics
             groups = kernel_groups(self.sm, loop_tree=kin.tree, recording=kin if self.rec is not None else None,
                                    loop=self._compiled)

@@ -61,6 +61,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     inertia, the plant step), then ``run_ticks`` itself (the argument types of ``CompiledSimulation.run``;
     its arm and joint-stop arguments from ``loop``, the ``CompiledSimulation``, when given)."""
     from sms_cli.sim.compiled.dynamics import workspace
+    from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
 
     plant_tree = tree[:7] + tree[9:]  # without mass and com
     nw = len(sm.idx.wheels)
@@ -90,12 +91,16 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
+        KernelCall(f"{mod}.thrusters:thruster_step", (tree, NO_THRUSTERS[2], 0.0, np.zeros(0), q, v, np.zeros(sm.nv), 0.0, 0.01,
+                                                      q.copy(), v.copy(), np.zeros(0), np.zeros(2), ws), cost=3.0),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
-            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *NO_MOMENTUM_LAW, *arm_args, *ref, *stop_args, 0.0, 1.0, 1, 0, 0, 1e9,
+            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *NO_MOMENTUM_LAW, *arm_args, *ref, *stop_args,
+            *NO_THRUSTERS, 0.0, 1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
             np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((0, 3)), np.empty(0),
-            np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)), np.empty((2 * ns, 10)),
+            np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)), np.empty((0, 1)),
+            np.empty((0, 9)), np.empty((2 * ns, 10)),
             np.zeros(1, dtype=np.int64)), cost=6.0),
     ]
 
@@ -148,4 +153,5 @@ def momentum_calls() -> list[KernelCall]:
         KernelCall(f"{mc}:locked_velocity", (v, model, np.empty(3)), cost=0.2),
         KernelCall(f"{mc}:momentum_control", (0, q, v, ref, model, par, mem, np.zeros(0), np.empty(0), np.empty(6)),
                    cost=10.0),
+        KernelCall(f"{mc}:locked_model", (np.eye(7), np.array([6], dtype=np.int64)), cost=2.0),
     ]

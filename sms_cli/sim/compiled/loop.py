@@ -25,10 +25,11 @@ from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torqu
 from sms_cli.sim.compiled.dynamics import (aba, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
                                            momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
                                            world_placements)
-from sms_cli.sim.compiled.momentum_control import locked_velocity, lyapunov_terms, momentum_control
+from sms_cli.sim.compiled.momentum_control import locked_model, locked_velocity, lyapunov_terms, momentum_control
 from sms_cli.sim.compiled.stops import stop_step
+from sms_cli.sim.compiled.thrusters import USED, thruster_step
 
-RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED = 0, 1, 2, 3, 4
+RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED, ALLOCATE = 0, 1, 2, 3, 4, 5
 # column blocks of the per-tick arm trace ``tr_arm`` (each n_arm wide, then the base motion's 6)
 ARM_ERR, ARM_REF, ARM_RATE_REF, ARM_RATE, ARM_TORQUE, ARM_STOP_TIME, ARM_STOP_PEN, ARM_BLOCKS = 0, 1, 2, 3, 4, 5, 6, 7
 
@@ -80,6 +81,9 @@ def run_ticks(
     arm_q, arm_v, arm_code, arm_par, arm_wrap, arm_a, arm_p, effort, ref_times, ref_points, ref_step, t_phase0,
     # joint stops (stops.stop_step): on, table (arm index, v and q indices, limits), restitution; state in/out
     stop_on, sj_arm, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since,
+    # real thrusters (thrusters.thruster_step): on, probe (stop before the plant steps with the commanded wrench in
+    # thr_cmd), the set's tuple, the firing pattern (start, on-times), state in/out, commanded wrench out
+    thr_on, thr_probe, thr, thr_t0, thr_on_times, thr_state, thr_cmd,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
     # state, in/out
@@ -88,6 +92,8 @@ def run_ticks(
     tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_locked, tr_lyap, tr_wrench,
     # outputs per plant step (state after the step and the wheel torque applied during it; the momentum law's W terms)
     st_t, st_q, st_v, st_tw, st_lyap,
+    # per plant step with real thrusters: [thrust averaged over the step (n), propellant used] and [p, k, μ] at the mass
+    st_thr, st_mom,
     # joint-stop events (stops.py rows) and their count
     ev, ev_n,
 ):
@@ -112,7 +118,14 @@ def run_ticks(
 
     A momentum law (mom_code > 0, ``momentum_control``) replaces the attitude law: its wheel torques (clipped)
     and its base wrench (applied as an ideal source); ``tr_locked``/``tr_lyap``/``tr_wrench`` get per tick μ, the last W and the wrench
-    (``mom_W``, the phase start's or the last step's), ``st_lyap`` W and its terms after every step."""
+    (``mom_W``, the phase start's or the last step's), ``st_lyap`` W and its terms after every step.
+
+    Real thrusters (thr_on; ``thrusters.thruster_step``): the wrench the law would apply is the thrusters' command,
+    allocated by the caller (``ThrusterDrive.command``, an LP): a probe call (thr_probe) returns ALLOCATE at the
+    first tick's control with that wrench in thr_cmd (the caller restores the laws' state it changed), then the
+    call with the pattern (thr_t0, thr_on_times) steps the plant through the firings, the base body losing the
+    propellant spent (the tree's inertia, mass and com arrays change in place); the momentum law then takes its
+    locked/shape quantities from the mass matrix at the current mass (``locked_model``)."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
@@ -156,7 +169,11 @@ def run_ticks(
     dq, q_fd = np.empty(nv), np.empty(nq)
     R_fd, p_fd = np.empty((n, 3, 3)), np.empty((n, 3))
     tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
+    tree_t = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v)
     wrench = np.zeros(6)
+    impulse = np.zeros(thr_on_times.shape[0])
+    mom_vary = thr_on and mom_code > 0  # the law's quantities follow the propellant spent
+    M_mom = np.empty((nv, nv))
     t = t0
     steps = 0
     for k in range(n_ticks):
@@ -171,6 +188,10 @@ def run_ticks(
         sat = False
         joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
+        if mom_vary:
+            joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+            mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
+            mom_model = locked_model(M_mom, wheel_v)
         if mom_code > 0:
             locked_velocity(v, mom_model, tr_locked[k])
             tr_lyap[k] = mom_W[0]
@@ -267,6 +288,13 @@ def run_ticks(
         elif law_on and thrusters:
             for a in range(3):
                 tau[3 + a] = T[a]
+        if thr_on:  # the thrusters deliver the wrench (ThrusterDrive.command by the caller), not the ideal source
+            if thr_probe:
+                for a in range(6):
+                    thr_cmd[a] = tau[a]
+                return k, steps, ALLOCATE
+            for a in range(6):
+                tau[a] = 0.0
         live = nw > 0 and (may_reach_limit(ws, tau_w, eff_inertia, max_speed, n_sub * dt)
                            or coulomb != 0.0 or viscous != 0.0)
         for i in range(nw):
@@ -284,7 +312,9 @@ def run_ticks(
                 limited_torque(tau_w, ws, eff_inertia, max_speed, dt, coulomb, viscous, tau_applied)
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
-            if stop_on:
+            if thr_on:
+                thruster_step(tree_t, thr, thr_t0, thr_on_times, q, v, tau, t, dt, q_new, v_new, impulse, thr_state, work)
+            elif stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
                                  tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work):
                     return k + 1, steps, STOP_FAILED
@@ -302,6 +332,21 @@ def run_ticks(
                 st_v[steps, a] = v_new[a]
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
+            if thr_on:
+                n_thr = impulse.shape[0]
+                for i in range(n_thr):
+                    st_thr[steps, i] = impulse[i] / dt
+                st_thr[steps, n_thr] = thr_state[USED]
+                joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+                momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
+                for a in range(6):
+                    st_mom[steps, a] = me[a]
+                if nw:  # μ at the mass of the step's end (/momentum/locked)
+                    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
+                    model_t = locked_model(M_mom, wheel_v)
+                    locked_velocity(v, model_t, st_mom[steps, 6:9])
+                    if mom_vary:
+                        mom_model = model_t
             if mom_code > 0:
                 mom_W[0] = lyapunov_terms(mom_code, q, v, q_ref, mom_model, mom_par, mom_mem, st_lyap[steps])
             steps += 1

@@ -38,8 +38,8 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
              for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
         (bool(spec.disturbances), "the mission has disturbances"),
-        (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
-         "the mission has real thrusters (thrusters:), which the Python loop models"),
+        (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec) and bool(sm.arm),
+         "the mission has real thrusters (thrusters:) and an arm"),
         (any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed"),
         (any(p.attitude_profile != "step" for p in spec.phases), "a phase has a smooth attitude profile"),
         (any(p.attach or p.detach for p in spec.phases), "a phase attaches or releases a payload"),
@@ -69,7 +69,7 @@ class CompiledSimulation:
     """One mission simulation by the compiled loop (see the module docstring)."""
 
     def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder, progress, att_law,
-                 chunk_steps: int = CHUNK_STEPS, arm_law=None):
+                 chunk_steps: int = CHUNK_STEPS, arm_law=None, att_spec=None):
         from sms_cli.sim.actuators import WheelArray
         from sms_cli.sim.engine import Progress
 
@@ -83,19 +83,29 @@ class CompiledSimulation:
         self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
         self.record_wrench = records_base_wrench(spec)  # thrusters: /base/wrench (sms_cli.sim.timing)
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
+        self.law_name = getattr(att_spec, "law", "attitude")  # the propellant's key per law (real thrusters)
+        self.thr = None  # real thrusters (thruster_run), the allocation at each tick
+        if getattr(sm, "thrusters", None) is not None:
+            from sms_cli.sim.timing import uses_thrusters
+
+            if uses_thrusters(spec):
+                from sms_cli.sim.compiled.thruster_run import ThrusterRun
+
+                self.thr = ThrusterRun(sm, self.kinematics.tree)
 
     # ------------------------------------------------------------------ pieces
     def _tree_args(self):
-        return self.kinematics.tree
+        return self.kinematics.tree if self.thr is None else self.thr.tree
 
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.kinematics(qs, vs)
 
     def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None,
-                extra=None) -> None:
+                extra=None, mom=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks (``wrench``: the
         thrusters' wrench on the base per step, for ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's
-        torques and joint reference per step; ``extra``: more topics, {topic: {field: values per step}})."""
+        torques and joint reference per step; ``extra``: more topics, {topic: {field: values per step}}; ``mom``: [p, k
+        about the CoM, μ] per step at the mass of each step, with real thrusters)."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
@@ -108,8 +118,10 @@ class CompiledSimulation:
         tau_m = np.zeros((n, n_arm)) if tau_m is None else tau_m[idx]
         joint_ref = np.zeros((n, n_arm)) if joint_ref is None else joint_ref[idx]
         extra = None if extra is None else {k: {f: x[idx] for f, x in d.items()} for k, d in extra.items()}
-        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err,
-                          wrench=None if wrench is None else wrench[idx], extra=extra)
+        p, k, locked = (None, None, None) if mom is None else (mom[idx, 0:3], mom[idx, 3:6], mom[idx, 6:9])
+        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err, p, k,
+                          wrench=None if wrench is None else wrench[idx], extra=extra,
+                          locked=locked if self.sm.wheels else None)
 
     def _law_args(self):
         """run_ticks's law arguments: (code, parameters, J, G, Js, body code, J̇ step), from the law object (its
@@ -140,7 +152,8 @@ class CompiledSimulation:
         law = self.law
         if not hasattr(law, "actuate"):
             return NO_MOMENTUM_LAW
-        return int(law.code), law.model_args(), law.par, law.mem, np.zeros(1)
+        model = law.model_args() if self.thr is None else self.thr.law_model(self.sm.q0.astype(float))
+        return int(law.code), model, law.par, law.mem, np.zeros(1)
 
     def _arm_args(self):
         """run_ticks's arm arguments: coordinates, law (its ``code``, parameter rows, wrap mask; −1: none),
@@ -188,7 +201,8 @@ class CompiledSimulation:
 
     # ------------------------------------------------------------------ main loop
     def run(self):
-        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED, run_ticks
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, RUNNING, SETTLED, STOP_FAILED, run_ticks
+        from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
         from sms_cli.sim.compiled.momentum_control import locked_velocity
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.engine import build_result, phase_event
@@ -207,7 +221,9 @@ class CompiledSimulation:
         law_args = self._law_args()
         mom_args = self._momentum_args()
         mlaw = mom_args[0] > 0
-        lyap = LyapunovSeries(self.law) if mlaw else None
+        thr = self.thr
+        lyap = LyapunovSeries(self.law, (lambda _q: self.law.model_args()) if thr is None else thr.law_model) if mlaw else None
+        thr_args = NO_THRUSTERS if thr is None else thr.args(False)
         arm_args = self._arm_args()
         stop_args = self._stop_args()
         n_arm, ns, stop_on = len(sm.arm), self.stop_table.n, stop_args[0]
@@ -218,15 +234,18 @@ class CompiledSimulation:
         status, why = "completed", ""
         spans: list[tuple[int, float, float]] = []
         pieces: list[dict] = []
+        propellant: dict[int, tuple[float, float]] = {}  # phase index -> propellant used at its start, at its end (kg)
         last_T = np.zeros(3)
         if self.rec is not None:  # the initial state is part of the recording
             self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
                          np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None],
-                         extra=lyap.topic(lyap.terms(q, v, q_att_ref)[None]) if mlaw else None)
+                         extra={**(thr.initial_topics() if thr else {}),
+                                **(lyap.topic(lyap.terms(q, v, q_att_ref)[None]) if mlaw else {})} or None)
         wall0 = time.perf_counter()
         try:
             for ip, phase in enumerate(spec.phases):
                 t_phase0 = t
+                used0 = thr.used if thr else 0.0
                 if self.rec is not None:
                     self.rec.write_event(t, "phase", phase_event(phase))
                 q_ref = AttitudeProfile(q_att_ref, phase.attitude, "step", None).q_target.astype(float)
@@ -251,14 +270,37 @@ class CompiledSimulation:
                           "lyapunov": np.empty(m if mlaw else 0), "wrench": np.zeros((m if mlaw else 0, 6))}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
                     st_lyap = np.empty((ms if mlaw else 0, lyap.width if mlaw else 0))
+                    st_thr, st_mom = thr.step_arrays(ms) if thr else (np.empty((0, 1)), np.empty((0, 9)))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
-                    ticks, n_steps, code = run_ticks(
-                        *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, q_ref, settle_tol,
-                        float(phase.settle_time), *mom_args, *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
-                        t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
-                        q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
-                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], tr["locked"],
-                        tr["lyapunov"], tr["wrench"], st_t, st_q, st_v, st_tw, st_lyap, ev, ev_n)
+                    tr_rows = [tr[k] for k in ("t", "att_err", "wheel_speed", "wheel_torque", "saturated", "base_torque",
+                                               "momentum", "energy", "arm", "locked", "lyapunov", "wrench")]
+
+                    def call(k0, mk, s0, t0, thr_args, _tr=tr_rows, _st=(st_t, st_q, st_v, st_tw, st_lyap), _s2=(st_thr, st_mom),
+                             _phase=(law_on, thrusters, q_ref, settle_tol, phase, ref_times, ref_points, joints, t_phase0, tick0)):
+                        """run_ticks on the slice's ticks k0.. (mk of them) and steps s0.., from time t0."""
+                        law_on_, thrusters_, q_ref_, settle_tol_, phase_, ref_times_, ref_points_, joints_, t_phase0_, tick0_ = _phase
+                        return run_ticks(
+                            *self._tree_args(), *wheel_args, law_on_, thrusters_, torque_limit, *law_args, q_ref_, settle_tol_,
+                            float(phase_.settle_time), *mom_args, *arm_args, ref_times_, ref_points_, joints_.step, t_phase0_,
+                            *stop_args, *thr_args, t0, float(spec.dt), self.n_sub, tick0_ + k0, mk,
+                            float(spec.divergence.max_rate), q, v, memory, eff, settled, *(a[k0:k0 + mk] for a in _tr),
+                            *(a[s0:] for a in _st), *(a[s0:] for a in _s2), ev, ev_n)
+
+                    if thr is None:
+                        ticks, n_steps, code = call(0, m, 0, t, thr_args)
+                    else:  # one tick per call: probe the law's wrench, allocate it (the LP), step through the firings
+                        ticks, n_steps, code, t_now = 0, 0, RUNNING, t
+                        while ticks < m and code == RUNNING:
+                            saved = memory.copy(), mom_args[3].copy()
+                            call(ticks, 1, n_steps, t_now, thr.args(True))
+                            memory[:], mom_args[3][:] = saved  # the probe's control ran on the laws' state: undo
+                            thr.command(t_now)
+                            k1, s1, code = call(ticks, 1, n_steps, t_now, thr.args(False))
+                            tr["saturated"][ticks] |= thr.sat
+                            if k1 == 0:
+                                break
+                            ticks, n_steps = ticks + k1, n_steps + s1
+                            t_now = float(st_t[n_steps - 1]) if n_steps else t_now
                     piece = {k: a[:ticks] for k, a in tr.items() if mlaw or k not in ("locked", "lyapunov", "wrench")}
                     piece["phase"] = np.full(ticks, ip)
                     pieces.append(piece)
@@ -271,7 +313,17 @@ class CompiledSimulation:
                             lyap.add(ip, st_lyap[:n_steps])
                         if self.rec is not None:
                             wrench = None
-                            if self.record_wrench:  # the law's torque of each tick, held over its plant steps
+                            extra, st_m = {}, None
+                            if thr is not None:  # the firings' wrench per step, the thrusters' topics, the momenta
+                                held_cmd = np.array([c for c, _, _, _ in thr.ticks[-ticks:]]) if ticks else np.zeros((0, 6))
+                                delivered, extra = thr.topics(st_thr[:n_steps],
+                                                              np.repeat(held_cmd, self.n_sub, axis=0)[:n_steps])
+                                st_m = st_mom[:n_steps]
+                            if mlaw:
+                                extra.update(lyap.topic(st_lyap[:n_steps]))
+                            if self.record_wrench and thr is not None:
+                                wrench = delivered
+                            elif self.record_wrench:  # the law's torque of each tick, held over its plant steps
                                 wrench = np.zeros((n_steps, 6))
                                 if law_on and mlaw:  # a momentum law's whole wrench (ideal source)
                                     wrench[:] = np.repeat(piece["wrench"], self.n_sub, axis=0)[:n_steps]
@@ -280,8 +332,7 @@ class CompiledSimulation:
                             held = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
                                                            self.n_sub, axis=0)[:n_steps]
                             self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps], q_ref,
-                                               wrench, held(4), held(1), ev[:ev_n[0]],
-                                               lyap.topic(st_lyap[:n_steps]) if mlaw else None)
+                                               wrench, held(4), held(1), ev[:ev_n[0]], extra or None, st_m)
                     self.progress.update(t)
                     if code == NON_FINITE:
                         raise _Stop("the state became non-finite")
@@ -294,6 +345,7 @@ class CompiledSimulation:
                         break
                     tick0 += ticks
                 spans.append((ip, t_phase0, t))
+                propellant[ip] = (used0, thr.used if thr else 0.0)
                 q_att_ref = q_ref if phase.attitude is not None else q_att_ref
                 q_arm_ref = joints.final
         except _Stop as exc:
@@ -307,10 +359,12 @@ class CompiledSimulation:
             self.rec.write_event(t, "interrupted", {"t": t}, level="warning")
         finally:
             self.progress.close()
+        if spans and spans[-1][0] not in propellant:  # a phase ended by an interruption
+            propellant[spans[-1][0]] = (used0, thr.used if thr else 0.0)
         wall = time.perf_counter() - wall0
         filled = [p for p in pieces if p["t"].size]
         if status == "completed" and filled:  # the final state, as the Python loop adds it
-            _, _, mom = self._samples(q[None], v[None])
+            _, _, mom = self._samples(q[None], v[None]) if thr is None else (None, None, thr.momenta(q, v)[None])
             pieces.append({"t": np.array([t]), "att_err": np.array([np.linalg.norm(attitude_error(q_att_ref, q[3:7]))]),
                            "wheel_speed": v[wheel_v][None], "wheel_torque": filled[-1]["wheel_torque"][-1:],
                            "saturated": np.array([False]), "base_torque": last_T[None],
@@ -318,17 +372,25 @@ class CompiledSimulation:
                            "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled)})
             if mlaw:  # μ at the final state and the last step's W (the Python loop's last _trace)
                 mu = np.empty((1, 3))
-                locked_velocity(v, mom_args[1], mu[0])
+                locked_velocity(v, mom_args[1] if thr is None else thr.law_model(q), mu[0])
                 pieces[-1].update({"locked": mu, "lyapunov": mom_args[4].copy()})
         trace = self._trace_arrays(pieces, nw, n_arm)
         if mlaw:
             trace["locked"], trace["lyapunov"] = (np.concatenate([p[k] for p in pieces]) for k in ("locked", "lyapunov"))
+        if thr is not None and trace["t"].size:
+            trace.update(thr.trace(final=trace["t"].size > len(thr.ticks)))
         result = build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
         if mlaw:
             lyap.metrics(result, spans)
+        if thr is not None:  # propellant per phase, per attitude law and overall (kg)
+            for summary, (ip, _, _) in zip(result.phases, spans):
+                used = propellant.get(ip, (0.0, 0.0))
+                summary["propellant_used_kg"] = used[1] - used[0]
+            result.overall["propellant_used_kg"] = thr.used
+            result.overall["propellant_used_by_law_kg"] = {self.law_name: thr.used}
         return result
 
-    def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events, extra=None) -> None:
+    def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events, extra=None, mom=None) -> None:
         """``_record`` of a slice's steps with its joint-stop events in time order (an event before the
         samples at and after its time)."""
         if extra is not None and events.shape[0]:
@@ -345,7 +407,7 @@ class CompiledSimulation:
         if start < times.size:
             sl = slice(start, None)
             self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
-                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], extra=extra)
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], extra=extra, mom=mom)
 
     def _final_arm_row(self, q, v, q_arm_ref, filled) -> np.ndarray:
         """The arm trace row of the final state (the Python loop's last ``_trace``): error to the last
@@ -398,10 +460,11 @@ class LyapunovSeries:
     phase start and after every plant step, recorded on ``/control/lyapunov`` (the law's ``terms``, in name order)
     and summarised per phase (``sms_cli.sim.laws.momentum.lyapunov_metrics``)."""
 
-    def __init__(self, law):
+    def __init__(self, law, model):
         from sms_cli.sim.compiled import momentum_laws as K
 
         self.law = law
+        self.model = model  # q -> the law's model tuple at q and the current mass (momentum_control)
         self.width = K.T_N
         self.names = sorted(law.terms)
         self.cols = [K.TERM_NAMES.index(n) for n in self.names]
@@ -414,7 +477,7 @@ class LyapunovSeries:
 
         out = np.empty(self.width)
         K.momentum_lyapunov(int(self.law.code), np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
-                            np.ascontiguousarray(ref, dtype=float), *self.law.model_args(), self.law.par, self.law.mem, out)
+                            np.ascontiguousarray(ref, dtype=float), *self.model(np.ascontiguousarray(q, dtype=float)), self.law.par, self.law.mem, out)
         return out
 
     def phase_start(self, ip: int, q, v, ref) -> float:
