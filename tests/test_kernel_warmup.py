@@ -103,7 +103,8 @@ SIGNATURES = textwrap.dedent('''
                                              ("missions/caldera_eo", "python, compiled plant"),
                                              ("tests/data/compiled_law_backstepping", "python"),
                                              ("tests/data/momentum_offset", "python"),
-                                             ("tests/data/momentum_hierarchical", "compiled")])
+                                             ("tests/data/momentum_hierarchical", "compiled"),
+                                             ("missions/vicariotto_s3d_hierarchical", "compiled")])
 def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     """Every kernel the run calls was called by the warm-up with the same argument types: no
     dispatcher gains a signature during the run (the compiled loop with mrp_feedback, with smc and a
@@ -112,7 +113,8 @@ def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     the online inertia J(q) with an arm (astrobee_slew_backstepping); the Python loop with the compiled
     plant, an arm law on its model, joint stops and a recording (caldera_eo); the Python loop running an attitude law's kernels, with the
     SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W; the compiled loop
-    running a momentum law, its W each step and at each phase start)."""
+    running a momentum law, its W each step and at each phase start; with real thrusters, the law's quantities at the
+    current mass)."""
     script = tmp_path / "sigs.py"
     script.write_text(SIGNATURES)
     out = subprocess.run([sys.executable, str(script), str(ROOT / f"{mission}.yaml"), str(tmp_path / "r.mcap"),
