@@ -33,6 +33,8 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
     groups: list[list[KernelCall]] = []
     if loop_tree is not None:
         groups += [loop_calls(sm, loop_tree, loop), loop_callee_calls(sm, loop_tree)]
+        if getattr(loop, "thr", None) is not None:  # real thrusters: the runner's own kernel calls
+            groups.append(loop.thr.warm_calls())
     else:
         if plant is not None:
             groups += plant.warm_calls(stops=stops)

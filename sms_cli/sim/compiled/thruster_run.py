@@ -83,6 +83,23 @@ class ThrusterRun:
         z = np.zeros((1, 6))
         return self.topics(np.concatenate([np.zeros((1, self.n)), [[0.0]]], axis=1), z)[1]
 
+    def warm_calls(self) -> list:
+        """The kernels this object calls from Python (``law_model``, ``momenta``), with their argument types; the loop
+        links them into run_ticks, which does not make them callable from Python (``warmup.warm``)."""
+        from sms_cli.sim.compiled.dynamics import workspace
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        parent, kind, axis, place_R, place_p, inertia, _, mass, com, armature, idx_q, idx_v = self.tree
+        n, nv = parent.shape[0], self.sm.nv
+        q, v = self.sm.q0.astype(float).copy(), np.zeros(nv)
+        R, p = np.empty((n, 3, 3)), np.empty((n, 3))
+        d = "sms_cli.sim.compiled.dynamics"
+        return [KernelCall(f"{d}:joint_transforms", (kind, axis, place_R, place_p, idx_q, q, R, p), cost=0.5),
+                KernelCall(f"{d}:mass_matrix", (parent, kind, axis, inertia, armature, idx_v, R, p, np.empty((nv, nv))),
+                           cost=1.5),
+                KernelCall(f"{d}:momenta_energy", (parent, kind, axis, inertia, mass, com, armature, idx_v, R, p, v,
+                                                   np.empty(10), workspace(n, self.sm.nq, nv, 0)), cost=1.5)]
+
     def law_model(self, q: np.ndarray) -> tuple:
         """The momentum law's model tuple at q and the current mass (``momentum_control.locked_model``)."""
         from sms_cli.sim.compiled.dynamics import joint_transforms, mass_matrix
