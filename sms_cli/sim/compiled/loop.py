@@ -6,7 +6,9 @@ and the per-step states the recorder samples from.
 It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the missions the compiled
 engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, an arm with
 its law (``arm_laws.arm_torque``) following joint waypoints (``arm_laws.joint_reference``) and its
-joint stops (``stops.stop_step``), noiseless sensors, no disturbances, step attitude references.
+joint stops (``stops.stop_step``), or a momentum law of Vicariotto 2023 (``momentum_control``), real thrusters
+(``thrusters.thruster_step``, the allocation by the caller), noiseless sensors, no disturbances, step attitude
+references.
 tests/test_compiled_engine.py and tests/test_compiled_arm.py check the two engines against each other.
 """
 

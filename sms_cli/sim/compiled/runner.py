@@ -393,21 +393,25 @@ class CompiledSimulation:
     def _record_slice(self, times, qs, vs, tau_w, q_ref, wrench, tau_m, joint_ref, events, extra=None, mom=None) -> None:
         """``_record`` of a slice's steps with its joint-stop events in time order (an event before the
         samples at and after its time)."""
-        if extra is not None and events.shape[0]:
-            raise NotImplementedError("more topics and joint-stop events in one slice")  # no momentum law has an arm
+        def part(sl):  # the extra topics and momenta of the steps sl
+            ex = None if extra is None else {k: {f: x[sl] for f, x in d.items()} for k, d in extra.items()}
+            return ex, None if mom is None else mom[sl]
+
         start = 0
         for row in events:
             stop = int(np.searchsorted(times, row[0], side="left"))
             if stop > start:
                 sl = slice(start, stop)
+                ex, mo = part(sl)
                 self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
-                             tau_m=tau_m[sl], joint_ref=joint_ref[sl])
+                             tau_m=tau_m[sl], joint_ref=joint_ref[sl], extra=ex, mom=mo)
                 start = stop
             self._write_events(row[None])
         if start < times.size:
             sl = slice(start, None)
+            ex, mo = part(sl)
             self._record(times[sl], qs[sl], vs[sl], tau_w[sl], q_ref, wrench=None if wrench is None else wrench[sl],
-                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], extra=extra, mom=mom)
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], extra=ex, mom=mo)
 
     def _final_arm_row(self, q, v, q_arm_ref, filled) -> np.ndarray:
         """The arm trace row of the final state (the Python loop's last ``_trace``): error to the last
