@@ -18,7 +18,7 @@ NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
 # a momentum law's have the same types (CompiledSimulation._momentum_args)
 NO_MOMENTUM_MODEL = (np.zeros(0, dtype=np.int64), 0.0, np.zeros(3), np.zeros((3, 0)), np.zeros((3, 3)), np.zeros((3, 0)),
                      np.zeros(0), np.zeros((3, 0)), np.zeros((0, 0)))
-NO_MOMENTUM_LAW = (0, NO_MOMENTUM_MODEL, np.zeros(16), np.zeros(5), np.zeros(1))
+NO_MOMENTUM_LAW = (0, None, np.zeros(16), np.zeros(5), np.zeros(1))  # model None: run_ticks compiles without the laws
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
@@ -33,7 +33,9 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
     groups: list[list[KernelCall]] = []
     if loop_tree is not None:
         groups += [loop_calls(sm, loop_tree, loop), loop_callee_calls(sm, loop_tree)]
-        if getattr(loop, "thr", None) is not None:  # real thrusters: the runner's own kernel calls
+        if hasattr(getattr(loop, "law", None), "actuate"):  # a momentum law (momentum_control)
+            groups.append(momentum_calls())
+        if getattr(loop, "thr", None) is not None:  # real thrusters: their step and the runner's own kernel calls
             groups.append(loop.thr.warm_calls())
     else:
         if plant is not None:
@@ -75,8 +77,14 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     e1, e2 = np.empty(1), np.empty((1, nw))
     mod = "sms_cli.sim.compiled"
     n_arm = len(sm.arm)
+    mom_args, thr_args = NO_MOMENTUM_LAW, NO_THRUSTERS  # the run's own types (None: those blocks pruned)
     if loop is not None:
         arm_args, stop_args = loop._arm_args(), loop._stop_args()
+        mom_args = loop._momentum_args()
+        mom_args = (mom_args[0], mom_args[1], mom_args[2].copy(), mom_args[3].copy(), mom_args[4].copy())
+        if loop.thr is not None:
+            thr_args = loop.thr.args(False)
+            thr_args = thr_args[:5] + (thr_args[5].copy(), thr_args[6].copy())
     else:
         i0 = np.zeros(0, dtype=np.int64)
         arm_args = (i0, i0, -1, np.zeros((6, 0)), np.zeros(0, dtype=np.bool_), i0, i0, none_f)
@@ -93,12 +101,10 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
-        KernelCall(f"{mod}.thrusters:thruster_step", (tree, NO_THRUSTERS[2], 0.0, np.zeros(0), q, v, np.zeros(sm.nv), 0.0, 0.01,
-                                                      q.copy(), v.copy(), np.zeros(0), np.zeros(2), ws), cost=3.0),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
-            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *NO_MOMENTUM_LAW, *arm_args, *ref, *stop_args,
-            *NO_THRUSTERS, 0.0, 1.0, 1, 0, 0, 1e9,
+            False, False, np.inf, *NO_LAW, q[3:7].copy(), -1.0, 0.0, *mom_args, *arm_args, *ref, *stop_args,
+            *thr_args, 0.0, 1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
             np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((0, 3)), np.empty(0),
             np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)), np.empty((0, 1)),
@@ -136,7 +142,6 @@ def loop_callee_calls(sm, tree: tuple) -> list[KernelCall]:
                                                 np.empty(nw)), cost=0.3),
         KernelCall(f"{ctl}:may_reach_limit", (w, w, ones, ones, 0.1), cost=0.1),
         KernelCall(f"{ctl}:limited_torque", (w, w, ones, ones, 0.1, 0.0, 0.0, np.empty(nw)), cost=0.2),
-        *momentum_calls(),
     ]
 
 
@@ -146,7 +151,8 @@ def momentum_calls() -> list[KernelCall]:
     each phase start (``runner.LyapunovSeries``)."""
     from sms_cli.sim.compiled.momentum_laws import T_N
 
-    _, model, par, mem, _ = NO_MOMENTUM_LAW
+    _, _, par, mem, _ = NO_MOMENTUM_LAW
+    model = NO_MOMENTUM_MODEL
     q, v, ref = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]), np.zeros(6), np.array([0.0, 0.0, 0.0, 1.0])
     mc, ml = "sms_cli.sim.compiled.momentum_control", "sms_cli.sim.compiled.momentum_laws"
     return [

@@ -175,6 +175,9 @@ def run_ticks(
     wrench = np.zeros(6)
     impulse = np.zeros(thr_on_times.shape[0])
     mom_vary = thr_on and mom_code > 0  # the law's quantities follow the propellant spent
+    # without a momentum law (mom_model None) or real thrusters (thr None) numba prunes their blocks below (``is not
+    # None`` on an argument): the other missions do not compile the momentum laws and the thrusters' step
+    law_model = mom_model
     M_mom = np.empty((nv, nv))
     t = t0
     steps = 0
@@ -190,20 +193,23 @@ def run_ticks(
         sat = False
         joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
-        if mom_vary:
-            joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-            mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
-            mom_model = locked_model(M_mom, wheel_v)
-        if mom_code > 0:
-            locked_velocity(v, mom_model, tr_locked[k])
-            tr_lyap[k] = mom_W[0]
-        if law_on and mom_code > 0:
-            sat = momentum_control(mom_code, q, v, q_ref, mom_model, mom_par, mom_mem, max_torque, tau_w, wrench)
-            for a in range(3):
-                T[a] = wrench[3 + a]
-            for a in range(6):
-                tr_wrench[k, a] = wrench[a]
-        elif law_on:
+        mom_on = False
+        if mom_model is not None:
+            if mom_vary:
+                joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+                mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
+                law_model = locked_model(M_mom, wheel_v)
+            if mom_code > 0:
+                locked_velocity(v, law_model, tr_locked[k])
+                tr_lyap[k] = mom_W[0]
+            if law_on and mom_code > 0:
+                mom_on = True
+                sat = momentum_control(mom_code, q, v, q_ref, law_model, mom_par, mom_mem, max_torque, tau_w, wrench)
+                for a in range(3):
+                    T[a] = wrench[3 + a]
+                for a in range(6):
+                    tr_wrench[k, a] = wrench[a]
+        if law_on and not mom_on:
             error_quaternion(q[3:7], q_ref, qe)
             if body_code == 2:  # SystemBody.inertia, inertia_rate
                 system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
@@ -284,7 +290,7 @@ def run_ticks(
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)
         tau[:] = 0.0
-        if law_on and mom_code > 0:
+        if mom_on:
             for a in range(6):
                 tau[a] = wrench[a]
         elif law_on and thrusters:
@@ -315,7 +321,8 @@ def run_ticks(
                 for i in range(nw):
                     tau[wheel_v[i]] = tau_applied[i]
             if thr_on:
-                thruster_step(tree_t, thr, thr_t0, thr_on_times, q, v, tau, t, dt, q_new, v_new, impulse, thr_state, work)
+                if thr is not None:
+                    thruster_step(tree_t, thr, thr_t0, thr_on_times, q, v, tau, t, dt, q_new, v_new, impulse, thr_state, work)
             elif stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
                                  tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work):
@@ -334,7 +341,7 @@ def run_ticks(
                 st_v[steps, a] = v_new[a]
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
-            if thr_on:
+            if thr is not None:
                 n_thr = impulse.shape[0]
                 for i in range(n_thr):
                     st_thr[steps, i] = impulse[i] / dt
@@ -347,10 +354,12 @@ def run_ticks(
                     mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
                     model_t = locked_model(M_mom, wheel_v)
                     locked_velocity(v, model_t, st_mom[steps, 6:9])
-                    if mom_vary:
-                        mom_model = model_t
-            if mom_code > 0:
-                mom_W[0] = lyapunov_terms(mom_code, q, v, q_ref, mom_model, mom_par, mom_mem, st_lyap[steps])
+                    if mom_model is not None:
+                        if mom_vary:
+                            law_model = model_t
+            if mom_model is not None:
+                if mom_code > 0:
+                    mom_W[0] = lyapunov_terms(mom_code, q, v, q_ref, law_model, mom_par, mom_mem, st_lyap[steps])
             steps += 1
         if stop_on:
             for j in range(ns):

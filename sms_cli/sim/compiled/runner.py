@@ -152,7 +152,7 @@ class CompiledSimulation:
         law = self.law
         if not hasattr(law, "actuate"):
             return NO_MOMENTUM_LAW
-        model = law.model_args() if self.thr is None else self.thr.law_model(self.sm.q0.astype(float))
+        model = law.model_args(self.sm.q0)  # with real thrusters the loop recomputes it at each tick (locked_model)
         return int(law.code), model, law.par, law.mem, np.zeros(1)
 
     def _arm_args(self):

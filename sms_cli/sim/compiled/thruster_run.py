@@ -94,7 +94,11 @@ class ThrusterRun:
         q, v = self.sm.q0.astype(float).copy(), np.zeros(nv)
         R, p = np.empty((n, 3, 3)), np.empty((n, 3))
         d = "sms_cli.sim.compiled.dynamics"
-        return [KernelCall(f"{d}:joint_transforms", (kind, axis, place_R, place_p, idx_q, q, R, p), cost=0.5),
+        tr = "sms_cli.sim.compiled.thrusters"
+        return [KernelCall(f"{tr}:thruster_step", (self.tree, self.thr, 0.0, np.zeros(self.n), q, v, np.zeros(nv), 0.0, 0.01,
+                                                   q.copy(), v.copy(), np.zeros(self.n), np.zeros(2),
+                                                   workspace(n, self.sm.nq, nv, 0)), cost=6.0),
+                KernelCall(f"{d}:joint_transforms", (kind, axis, place_R, place_p, idx_q, q, R, p), cost=0.5),
                 KernelCall(f"{d}:mass_matrix", (parent, kind, axis, inertia, armature, idx_v, R, p, np.empty((nv, nv))),
                            cost=1.5),
                 KernelCall(f"{d}:momenta_energy", (parent, kind, axis, inertia, mass, com, armature, idx_v, R, p, v,
@@ -128,5 +132,5 @@ class ThrusterRun:
 
 
 # run_ticks's thruster arguments without real thrusters (types of ThrusterRun.args)
-NO_THRUSTERS = (False, False, (np.zeros((6, 0)), np.zeros(0), np.zeros(0), 1.0, 0.0, np.zeros((6, 6)), 0.0, np.zeros(3),
-                               np.zeros((6, 6)), np.zeros(3)), 0.0, np.zeros(0), np.zeros(2), np.zeros(6))
+# (the set's tuple None: run_ticks compiles without the thrusters' step)
+NO_THRUSTERS = (False, False, None, 0.0, np.zeros(0), np.zeros(2), np.zeros(6))

@@ -120,12 +120,10 @@ class _MomentumLaw:
         """Whether the law's locked/shape quantities are constant (no propellant spent): then ``model_args``."""
         return self._fixed_mass
 
-    def model_args(self) -> tuple:
+    def model_args(self, q=None) -> tuple:
         """The kernels' model arguments (wheels, mass, com_base, Tv, I, G, J, Λ, M_θ) a compiled loop passes to
-        ``momentum_laws.momentum_law`` (constant: only while the mass is fixed)."""
-        if not self._fixed_mass:
-            raise ValueError("the locked/shape quantities vary with the propellant spent")
-        return self._args0
+        ``momentum_laws.momentum_law``: constant while the mass is fixed, else at q and the model's current mass."""
+        return self._args0 if self._fixed_mass else self._model_args(self._quantities(np.asarray(q, float)))
 
     def locked_velocity(self, q, v) -> np.ndarray:
         """μ (3,) rad/s, base frame, from the law's locked/shape quantities (cached while the mass is fixed)."""
