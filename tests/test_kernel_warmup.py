@@ -72,7 +72,7 @@ SIGNATURES = textwrap.dedent('''
     from sms_cli.model.summary import model_summary
     import sms_cli.sim.compiled.dynamics as D, sms_cli.sim.compiled.loop as L, sms_cli.recording.encoding as B
     import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A, sms_cli.sim.compiled.arm_laws as R
-    import sms_cli.sim.compiled.momentum_laws as Mo
+    import sms_cli.sim.compiled.momentum_laws as Mo, sms_cli.sim.compiled.momentum_control as Mc
     import sms_cli.sim.compiled.profiles as Pf, sms_cli.sim.compiled.held_base as Hb, sms_cli.sim.compiled.resolved_rate as Rr
     import sms_cli.sim.compiled.disturbances as Di
 
@@ -87,7 +87,7 @@ SIGNATURES = textwrap.dedent('''
     with rec:
         sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
         sim.warm_up()
-        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo, Pf, Hb, Rr, Di) for n in dir(m)
+        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo, Mc, Pf, Hb, Rr, Di) for n in dir(m)
                    if hasattr(getattr(m, n), "signatures")}
         before = {k.py_func.__name__: len(k.signatures) for k in kernels}
         res = sim.run()
@@ -105,10 +105,12 @@ SIGNATURES = textwrap.dedent('''
                                              ("missions/astrobee_slew_backstepping", "compiled"),
                                              ("missions/caldera_eo", "compiled"),
                                              ("missions/chevallard_deploy_track", "compiled"),
-                                             ("missions/vicariotto_s3a_free_floating", "python, compiled plant"),
+                                             ("tests/data/noisy_caldera_eo", "python, compiled plant"),
                                              ("tests/data/compiled_disturbances", "compiled"),
                                              ("tests/data/compiled_law_backstepping", "python"),
-                                             ("tests/data/momentum_offset", "python")])
+                                             ("tests/data/momentum_offset", "python"),
+                                             ("tests/data/momentum_hierarchical", "compiled"),
+                                             ("missions/vicariotto_s3d_hierarchical", "compiled")])
 def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     """Every kernel the run calls was called by the warm-up with the same argument types: no
     dispatcher gains a signature during the run (the compiled loop with mrp_feedback, with smc and a
@@ -116,9 +118,11 @@ def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     stops (astrobee_arm), its computed-torque law on the attitude-held model with wheels (caldera_s2_arm),
     the online inertia J(q) with an arm (astrobee_slew_backstepping), a smooth attitude profile (caldera_eo), a held
     base with joint stops and end-effector tracking (chevallard_deploy_track; its first phase: the held base),
-    disturbances (compiled_disturbances); the Python loop with the compiled plant and a recording
-    (vicariotto_s3a_free_floating); the Python loop running an attitude law's kernels, with the
-    SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W)."""
+    disturbances (compiled_disturbances); the Python loop with the compiled plant, an arm law on its model, joint
+    stops and a recording (noisy_caldera_eo); the Python loop running an attitude law's kernels, with the
+    SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W; the compiled loop
+    running a momentum law, its W each step and at each phase start; with real thrusters, the law's quantities at the
+    current mass)."""
     script = tmp_path / "sigs.py"
     script.write_text(SIGNATURES)
     out = subprocess.run([sys.executable, str(script), str(ROOT / f"{mission}.yaml"), str(tmp_path / "r.mcap"),

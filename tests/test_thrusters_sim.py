@@ -18,7 +18,8 @@ def test_delivered_over_each_cycle_is_the_command_within_the_bound():
     loaded = load_mission(ROOT / "tests" / "data" / "thrusters_cube.yaml")
     sm = compile_system(loaded)
     m0 = sm.total_mass
-    sim = Simulation(sm, loaded.mission.simulation, progress=False)
+    # the Python loop's drive is spied on here (the compiled loop's equals it: tests/test_compiled_momentum.py)
+    sim = Simulation(sm, loaded.mission.simulation.model_copy(update={"engine": "python"}), progress=False)
     d = sim.thr
     assert d is not None and not sim.compiled_loop
     ticks, acc = [], {"impulse": np.zeros(d.ts.n), "T": 0.0}

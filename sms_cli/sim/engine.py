@@ -276,25 +276,13 @@ class Simulation:
         self.lyapunov_series.append((ip, t, self.att_law.lyapunov_terms(s.q, s.v, att_ref.quat)))
 
     def _lyapunov_metrics(self, result) -> None:
-        """Per phase: W at its start and end, the largest increase of W over one plant step and the sum of the
-        increases (within one stage of a hierarchical law); overall: the largest of them."""
-        worst = 0.0
-        for summary, (ip, _, _) in zip(result.phases, self._spans):
-            rows = [d for i, _, d in self.lyapunov_series if i == ip]
-            if not rows:
-                continue
-            W = np.array([d["W"] for d in rows])
-            stage = np.array([d.get("stage", 1.0) for d in rows])
-            inc = np.diff(W)[np.diff(stage) == 0] if W.size > 1 else np.zeros(0)
-            up = float(inc.max()) if inc.size else 0.0
-            summary["lyapunov_start"], summary["lyapunov_end"] = float(W[0]), float(W[-1])
-            summary["lyapunov_increase_max"] = up
-            summary["lyapunov_increase_total"] = float(inc[inc > 0].sum()) if inc.size else 0.0
-            if "position_error" in rows[0]:  # translation PD (3.7): the CoM's distance to its target (m)
-                dist = np.array([d["position_error"] for d in rows])
-                summary["com_position_error_m"] = {"max": float(dist.max()), "final": float(dist[-1])}
-            worst = max(worst, up)
-        result.overall["lyapunov_increase_max"] = worst
+        """W's figures per phase and overall (``sms_cli.sim.laws.momentum.lyapunov_metrics``) from the series."""
+        from sms_cli.sim.laws.momentum import lyapunov_metrics
+
+        rows = [d for _, _, d in self.lyapunov_series]
+        col = lambda k: np.array([d[k] for d in rows]) if rows and k in rows[0] else None  # noqa: E731
+        lyapunov_metrics(result, self._spans, np.array([i for i, _, _ in self.lyapunov_series], dtype=int),
+                         np.array([d["W"] for d in rows]), col("stage"), col("position_error"))
 
     def _held_base_reaction(self, s: State, tau_w, tau_m) -> np.ndarray:
         """Wrench [f; n] (base frame) the support applies to hold the base while the wheels and the arm
@@ -356,7 +344,7 @@ class Simulation:
                 from sms_cli.sim.compiled.runner import CompiledSimulation
 
                 self._compiled = CompiledSimulation(self.sm, self.spec, self.rec, self._progress_flag, self.att_law,
-                                                    arm_law=self.arm_law, rr=self.rr)
+                                                    arm_law=self.arm_law, rr=self.rr, att_spec=self.att_spec)
             kin = self._compiled.kinematics
             groups = kernel_groups(self.sm, loop_tree=kin.tree, recording=kin if self.rec is not None else None,
                                    loop=self._compiled)

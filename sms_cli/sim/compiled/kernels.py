@@ -14,6 +14,11 @@ from sms_cli.sim.compiled.warmup import KernelCall
 # the attitude-law arguments of run_ticks when no law is configured (code, parameters, J, G, Js, body
 # code, difference step of J̇); a configured law's have the same types (CompiledSimulation._law_args)
 NO_LAW = (0, np.zeros(8), np.eye(3), np.zeros((3, 0)), np.zeros(0), 0, 1e-6)
+# run_ticks's momentum-law arguments without one (code 0, the model tuple of momentum_control, gains, state, last W);
+# a momentum law's have the same types (CompiledSimulation._momentum_args)
+NO_MOMENTUM_MODEL = (np.zeros(0, dtype=np.int64), 0.0, np.zeros(3), np.zeros((3, 0)), np.zeros((3, 3)), np.zeros((3, 0)),
+                     np.zeros(0), np.zeros((3, 0)), np.zeros((0, 0)))
+NO_MOMENTUM_LAW = (0, None, np.zeros(16), np.zeros(5), np.zeros(1))  # model None: run_ticks compiles without the laws
 
 
 def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool = False, recording=None,
@@ -29,6 +34,10 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
     groups: list[list[KernelCall]] = []
     if loop_tree is not None:
         groups += [loop_calls(sm, loop_tree, loop), loop_callee_calls(sm, loop_tree)]
+        if hasattr(getattr(loop, "law", None), "actuate"):  # a momentum law (momentum_control)
+            groups.append(momentum_calls())
+        if getattr(loop, "thr", None) is not None:  # real thrusters: their step and the runner's own kernel calls
+            groups.append(loop.thr.warm_calls())
     else:
         if plant is not None:
             groups += plant.warm_calls(stops=stops)
@@ -95,6 +104,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     from sms_cli.sim.compiled.dynamics import workspace
     from sms_cli.sim.compiled.loop import RR_N, X_N
     from sms_cli.sim.compiled.profiles import PROF_N
+    from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
 
     plant_tree = tree[:7] + tree[9:]  # without mass and com
     nw = len(sm.idx.wheels)
@@ -106,8 +116,14 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     e1, e2 = np.empty(1), np.empty((1, nw))
     mod = "sms_cli.sim.compiled"
     n_arm = len(sm.arm)
+    mom_args, thr_args = NO_MOMENTUM_LAW, NO_THRUSTERS  # the run's own types (None: those blocks pruned)
     if loop is not None:
         arm_args, stop_args = loop._arm_args(), loop._stop_args()
+        mom_args = loop._momentum_args()
+        mom_args = (mom_args[0], mom_args[1], mom_args[2].copy(), mom_args[3].copy(), mom_args[4].copy())
+        if loop.thr is not None:
+            thr_args = loop.thr.args(False)
+            thr_args = thr_args[:5] + (thr_args[5].copy(), thr_args[6].copy())
     else:
         i0 = np.zeros(0, dtype=np.int64)
         arm_args = (i0, i0, -1, np.zeros((6, 0)), np.zeros(0, dtype=np.bool_), i0, i0, none_f)
@@ -126,12 +142,13 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
         KernelCall(f"{mod}.loop:run_ticks", (
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
-            False, False, np.inf, *NO_LAW, np.zeros(PROF_N), -1.0, 0.0, *arm_args, *ref, *stop_args,
-            False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), np.zeros((0, 10)), 0.0,
-            1.0, 1, 0, 0, 1e9,
+            False, False, np.inf, *NO_LAW, np.zeros(PROF_N), -1.0, 0.0, *mom_args, *arm_args, *ref, *stop_args,
+            False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), np.zeros((0, 10)),
+            *thr_args, 0.0, 1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
-            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)), e1, np.empty((1, sm.nq)),
-            np.empty((1, sm.nv)), e2, np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
+            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)), np.empty((0, 3)),
+            np.empty(0), np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)),
+            np.empty((0, 1)), np.empty((0, 9)), np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
     ]
 
 
@@ -196,4 +213,24 @@ def tracking_calls(sm, tree: tuple) -> list[KernelCall]:
         KernelCall(f"{mod}.resolved_rate:track_end_effector", (
             parent, kind, axis, idx_v, oR, op, 0, np.eye(3), w3, np.eye(nv), arm_v, wheel_v, np.zeros(nv), np.zeros(3),
             par[10:13], par[0:3], 0.05, 0.05, np.ones(na), True, *jac, np.empty(na), np.empty(3)), cost=0.6),
+    ]
+
+
+def momentum_calls() -> list[KernelCall]:
+    """The momentum laws' kernels as run_ticks calls them (``momentum_control``; the law dispatch and the W
+    dispatch compile with them), on the types of ``NO_MOMENTUM_LAW``; also the W dispatch the runner calls at
+    each phase start (``runner.LyapunovSeries``)."""
+    from sms_cli.sim.compiled.momentum_laws import T_N
+
+    _, _, par, mem, _ = NO_MOMENTUM_LAW
+    model = NO_MOMENTUM_MODEL
+    q, v, ref = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]), np.zeros(6), np.array([0.0, 0.0, 0.0, 1.0])
+    mc, ml = "sms_cli.sim.compiled.momentum_control", "sms_cli.sim.compiled.momentum_laws"
+    return [
+        KernelCall(f"{ml}:momentum_lyapunov", (0, q, v, ref, *model, par, mem, np.empty(T_N)), cost=3.0),
+        KernelCall(f"{mc}:lyapunov_terms", (0, q, v, ref, model, par, mem, np.empty(T_N)), cost=0.5),
+        KernelCall(f"{mc}:locked_velocity", (v, model, np.empty(3)), cost=0.2),
+        KernelCall(f"{mc}:momentum_control", (0, q, v, ref, model, par, mem, np.zeros(0), np.empty(0), np.empty(6)),
+                   cost=10.0),
+        KernelCall(f"{mc}:locked_model", (np.eye(7), np.array([6], dtype=np.int64)), cost=2.0),
     ]

@@ -6,8 +6,10 @@ and the per-step states the recorder samples from.
 It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the missions the compiled
 engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, an arm with
 its law (``arm_laws.arm_torque``) following joint waypoints (``arm_laws.joint_reference``) and its
-joint stops (``stops.stop_step``), noiseless sensors, disturbance wrenches (``disturbances``); step or smooth attitude references
-(``profiles``), held-base phases (``held_base``) and end-effector tracking (``resolved_rate``).
+joint stops (``stops.stop_step``), or a momentum law of Vicariotto 2023 (``momentum_control``), real thrusters
+(``thrusters.thruster_step``, the allocation by the caller), noiseless sensors, disturbance wrenches
+(``disturbances``); step or smooth attitude references (``profiles``), held-base phases (``held_base``) and
+end-effector tracking (``resolved_rate``).
 tests/test_compiled_engine.py and tests/test_compiled_arm.py check the two engines against each other.
 """
 
@@ -28,11 +30,13 @@ from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, i
                                            world_placements)
 from sms_cli.sim.compiled.disturbances import disturbance_wrench
 from sms_cli.sim.compiled.held_base import held_base_reaction
+from sms_cli.sim.compiled.momentum_control import locked_model, locked_velocity, lyapunov_terms, momentum_control
 from sms_cli.sim.compiled.profiles import attitude_reference, reference_rates
 from sms_cli.sim.compiled.resolved_rate import track_end_effector
 from sms_cli.sim.compiled.stops import stop_step
+from sms_cli.sim.compiled.thrusters import USED, thruster_step
 
-RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED = 0, 1, 2, 3, 4
+RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED, ALLOCATE = 0, 1, 2, 3, 4, 5
 # column blocks of the per-tick arm trace ``tr_arm`` (each n_arm wide, then the base motion's 6)
 ARM_ERR, ARM_REF, ARM_RATE_REF, ARM_RATE, ARM_TORQUE, ARM_STOP_TIME, ARM_STOP_PEN, ARM_BLOCKS = 0, 1, 2, 3, 4, 5, 6, 7
 # columns of the per-tick ``tr_x``: the attitude reference (xyzw), the end-effector error (m; NaN: not tracking),
@@ -83,6 +87,8 @@ def run_ticks(
     # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
     law_on, thrusters, torque_limit, law_code, law_par, J_law, G_law, Js_law, body_code, fd_step, att_prof,
     settle_tol, settle_time,
+    # momentum law instead (momentum_control; code 0: none): code, model tuple, gains, state and the last W, in/out
+    mom_code, mom_model, mom_par, mom_mem, mom_W,
     # arm: coordinates, law (arm_laws.arm_torque; code −1: none) with its model's indices (arm_model_terms),
     # effort limits, the phase's joint reference (arm_laws.joint_reference) and its start time
     arm_q, arm_v, arm_code, arm_par, arm_wrap, arm_a, arm_p, effort, ref_times, ref_points, ref_step, t_phase0,
@@ -92,14 +98,19 @@ def run_ticks(
     # rate limits, the end-effector frame; the tracked joint reference, in/out); the disturbances' table
     # (disturbances.py: rows DIST_*, none: no rows)
     held, rr_on, rr_par, rr_rate, ee_joint, ee_R, ee_p, q_track, dist,
+    # real thrusters (thrusters.thruster_step): on, probe (stop before the plant steps with the commanded wrench in
+    # thr_cmd), the set's tuple, the firing pattern (start, on-times), state in/out, commanded wrench out
+    thr_on, thr_probe, thr, thr_t0, thr_on_times, thr_state, thr_cmd,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
     # state, in/out
     q, v, law_mem, eff_inertia, settled_since,
     # outputs per control tick
-    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_x,
-    # outputs per plant step (state after the step and the wheel torque applied during it)
-    st_t, st_q, st_v, st_tw,
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_x, tr_locked, tr_lyap, tr_wrench,
+    # outputs per plant step (state after the step and the wheel torque applied during it; the momentum law's W terms)
+    st_t, st_q, st_v, st_tw, st_lyap,
+    # per plant step with real thrusters: [thrust averaged over the step (n), propellant used] and [p, k, μ] at the mass
+    st_thr, st_mom,
     # joint-stop events (stops.py rows) and their count
     ev, ev_n,
 ):
@@ -127,7 +138,18 @@ def run_ticks(
     internal momentum h from the wheels (body_code 0: G_law, Js_law, ``RigidBody``) or from the
     system's momentum about its CoM (body_code 1: h = Rᵀk_G − J ω, ``SystemBody``), or the online
     inertia (body_code 2: ``SystemBody(online=True)``): J(q) the locked inertia (``system_inertia``) and
-    J̇ its central difference along v with the step fd_step, h as for body_code 1."""
+    J̇ its central difference along v with the step fd_step, h as for body_code 1.
+
+    A momentum law (mom_code > 0, ``momentum_control``) replaces the attitude law: its wheel torques (clipped)
+    and its base wrench (applied as an ideal source); ``tr_locked``/``tr_lyap``/``tr_wrench`` get per tick μ, the last W and the wrench
+    (``mom_W``, the phase start's or the last step's), ``st_lyap`` W and its terms after every step.
+
+    Real thrusters (thr_on; ``thrusters.thruster_step``): the wrench the law would apply is the thrusters' command,
+    allocated by the caller (``ThrusterDrive.command``, an LP): a probe call (thr_probe) returns ALLOCATE at the
+    first tick's control with that wrench in thr_cmd (the caller restores the laws' state it changed), then the
+    call with the pattern (thr_t0, thr_on_times) steps the plant through the firings, the base body losing the
+    propellant spent (the tree's inertia, mass and com arrays change in place); the momentum law then takes its
+    locked/shape quantities from the mass matrix at the current mass (``locked_model``)."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
@@ -181,6 +203,14 @@ def run_ticks(
     oR_w, op_w = np.empty((n, 3, 3)), np.empty((n, 3))
     J_ee, Jm_rr, Jr_rr, ee_pos, target = np.empty((6, nv)), np.empty((6, n_arm)), np.empty((6, nw)), np.empty(3), np.empty(3)
     tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
+    tree_t = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v)
+    wrench = np.zeros(6)
+    impulse = np.zeros(thr_on_times.shape[0])
+    mom_vary = thr_on and mom_code > 0  # the law's quantities follow the propellant spent
+    # without a momentum law (mom_model None) or real thrusters (thr None) numba prunes their blocks below (``is not
+    # None`` on an argument): the other missions do not compile the momentum laws and the thrusters' step
+    law_model = mom_model
+    M_mom = np.empty((nv, nv))
     t = t0
     steps = 0
     for k in range(n_ticks):
@@ -197,7 +227,23 @@ def run_ticks(
         sat = False
         joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
-        if law_on:
+        mom_on = False
+        if mom_model is not None:
+            if mom_vary:
+                joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+                mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
+                law_model = locked_model(M_mom, wheel_v)
+            if mom_code > 0:
+                locked_velocity(v, law_model, tr_locked[k])
+                tr_lyap[k] = mom_W[0]
+            if law_on and mom_code > 0:
+                mom_on = True
+                sat = momentum_control(mom_code, q, v, q_ref, law_model, mom_par, mom_mem, max_torque, tau_w, wrench)
+                for a in range(3):
+                    T[a] = wrench[3 + a]
+                for a in range(6):
+                    tr_wrench[k, a] = wrench[a]
+        if law_on and not mom_on:
             error_quaternion(q[3:7], q_ref, qe)
             reference_rates(qe, w_ref, wd_ref, om_r, dom_r)
             if body_code == 2:  # SystemBody.inertia, inertia_rate
@@ -309,9 +355,19 @@ def run_ticks(
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)
         tau[:] = 0.0
-        if law_on and thrusters:
+        if mom_on:
+            for a in range(6):
+                tau[a] = wrench[a]
+        elif law_on and thrusters:
             for a in range(3):
                 tau[3 + a] = T[a]
+        if thr_on:  # the thrusters deliver the wrench (ThrusterDrive.command by the caller), not the ideal source
+            if thr_probe:
+                for a in range(6):
+                    thr_cmd[a] = tau[a]
+                return k, steps, ALLOCATE
+            for a in range(6):
+                tau[a] = 0.0
         live = nw > 0 and (may_reach_limit(ws, tau_w, eff_inertia, max_speed, n_sub * dt)
                            or coulomb != 0.0 or viscous != 0.0)
         for i in range(nw):
@@ -333,7 +389,10 @@ def run_ticks(
                 disturbance_wrench(dist, t, q, dw)
                 for a in range(6):
                     tau[a] = (T[a - 3] if (a >= 3 and law_on and thrusters) else 0.0) + dw[a]
-            if stop_on:
+            if thr_on:
+                if thr is not None:
+                    thruster_step(tree_t, thr, thr_t0, thr_on_times, q, v, tau, t, dt, q_new, v_new, impulse, thr_state, work)
+            elif stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
                                  tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work, (no_Bt, no_BtB, no_e, no_e), no_e,
                                  no_e, no_e, no_e, held):
@@ -352,6 +411,25 @@ def run_ticks(
                 st_v[steps, a] = v_new[a]
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
+            if thr is not None:
+                n_thr = impulse.shape[0]
+                for i in range(n_thr):
+                    st_thr[steps, i] = impulse[i] / dt
+                st_thr[steps, n_thr] = thr_state[USED]
+                joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+                momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
+                for a in range(6):
+                    st_mom[steps, a] = me[a]
+                if nw:  # μ at the mass of the step's end (/momentum/locked)
+                    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
+                    model_t = locked_model(M_mom, wheel_v)
+                    locked_velocity(v, model_t, st_mom[steps, 6:9])
+                    if mom_model is not None:
+                        if mom_vary:
+                            law_model = model_t
+            if mom_model is not None:
+                if mom_code > 0:
+                    mom_W[0] = lyapunov_terms(mom_code, q, v, q_ref, law_model, mom_par, mom_mem, st_lyap[steps])
             steps += 1
         if stop_on:
             for j in range(ns):

@@ -30,6 +30,8 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     from sms_cli.sim.timing import uses_thrusters
 
     ndi = spec.ndi is not None  # the NDI loop (ndi_runner) takes base-mounted modes and payload changes
+    real_thrusters = getattr(sm, "thrusters", None) is not None and uses_thrusters(spec)
+    momentum = isinstance(att_spec, _momentum_laws())
     checks = [
         (sm.n_modes > 0 and not ndi, "the model has flexible modes"),
         (sm.n_modes > 0 and sm.base_modal_coupling is None, "an appendage is not mounted on the base"),
@@ -41,8 +43,13 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
         (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
              for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
-        (getattr(sm, "thrusters", None) is not None and uses_thrusters(spec),
-         "the mission has real thrusters (thrusters:), which the Python loop models"),
+        (bool(sm.arm) and real_thrusters, "the mission has real thrusters (thrusters:) and an arm"),
+        (real_thrusters and bool(spec.disturbances), "the mission combines real thrusters with disturbances"),
+        (momentum and bool(spec.disturbances), "the mission combines a momentum law with disturbances"),
+        ((real_thrusters or momentum) and any(p.base_mode == "fixed" for p in spec.phases),
+         "a phase holds the base fixed on a mission with real thrusters or a momentum law"),
+        (momentum and any(p.attitude_profile != "step" for p in spec.phases),
+         "a momentum law follows a smooth attitude profile"),
         (any(p.attach or p.detach for p in spec.phases) and not ndi, "a phase attaches or releases a payload"),
         (ndi and any(p.base_mode == "fixed" for p in spec.phases), "a phase of an NDI mission holds the base fixed"),
         (ndi and any(p.attitude_profile != "step" for p in spec.phases), "an NDI mission has a smooth attitude profile"),
@@ -55,21 +62,31 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     return why
 
 
+def _momentum_laws():
+    from sms_cli.sim.laws.schema import (FreeFlyingSpec, HierarchicalSpec, QuaternionLyapunovSpec, Se3PdSpec,
+                                         WheelsFreeFloatingSpec)
+
+    return (WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec, QuaternionLyapunovSpec)
+
+
 def _compiled_laws():
-    from sms_cli.sim.laws.schema import (BacksteppingSpec, MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec,
-                                         TwistingSpec)
+    from sms_cli.sim.laws.schema import (BacksteppingSpec, FreeFlyingSpec, HierarchicalSpec, MrpFeedbackSpec,
+                                         QuaternionLyapunovSpec, QuaternionPdSpec, Se3PdSpec, SmcAttitudeSpec,
+                                         TwistingSpec, WheelsFreeFloatingSpec)
 
-    return (MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec)
+    return (MrpFeedbackSpec, QuaternionPdSpec, SmcAttitudeSpec, TwistingSpec, BacksteppingSpec,
+            WheelsFreeFloatingSpec, FreeFlyingSpec, HierarchicalSpec, Se3PdSpec, QuaternionLyapunovSpec)
 
 
-COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping")
+COMPILED_LAW_NAMES = ("mrp_feedback", "quaternion_pd", "smc", "twisting_smc", "backstepping", "wheels_free_floating",
+                      "free_flying", "hierarchical", "se3_pd", "quaternion_lyapunov")
 
 
 class CompiledSimulation:
     """One mission simulation by the compiled loop (see the module docstring)."""
 
     def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder, progress, att_law,
-                 chunk_steps: int = CHUNK_STEPS, arm_law=None, rr=None):
+                 chunk_steps: int = CHUNK_STEPS, arm_law=None, rr=None, att_spec=None):
         from sms_cli.sim.actuators import WheelArray
         from sms_cli.sim.engine import Progress
 
@@ -87,20 +104,30 @@ class CompiledSimulation:
 
         self.dist = disturbance_table(spec.disturbances)
         self.progress = Progress(sum(p.duration for p in spec.phases), progress)
+        self.law_name = getattr(att_spec, "law", "attitude")  # the propellant's key per law (real thrusters)
+        self.thr = None  # real thrusters (thruster_run), the allocation at each tick
+        if getattr(sm, "thrusters", None) is not None:
+            from sms_cli.sim.timing import uses_thrusters
+
+            if uses_thrusters(spec):
+                from sms_cli.sim.compiled.thruster_run import ThrusterRun
+
+                self.thr = ThrusterRun(sm, self.kinematics.tree)
 
     # ------------------------------------------------------------------ pieces
     def _tree_args(self):
-        return self.kinematics.tree
+        return self.kinematics.tree if self.thr is None else self.thr.tree
 
     def _samples(self, qs: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.kinematics(qs, vs)
 
     def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None,
-                held=False) -> None:
+                held=False, extra=None, mom=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks (``ref_quat``: one
         reference or one per step; ``wrench``: the thrusters' wrench on the base per step, for
         ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's torques and joint reference per step; ``held``:
-        the base is held, its support's wrench on ``/base/reaction``)."""
+        the base is held, its support's wrench on ``/base/reaction``; ``extra``: more topics, {topic: {field:
+        values per step}}; ``mom``: [p, k about the CoM, μ] per step at the mass of each step, with real thrusters)."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
@@ -113,8 +140,11 @@ class CompiledSimulation:
         tau_m = np.zeros((n, n_arm)) if tau_m is None else tau_m[idx]
         joint_ref = np.zeros((n, n_arm)) if joint_ref is None else joint_ref[idx]
         reaction = self._held_reactions(qs, vs[idx], tau_w[idx], tau_m) if held else None
-        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err, reaction=reaction,
-                          wrench=None if wrench is None else wrench[idx])
+        extra = None if extra is None else {k: {f: x[idx] for f, x in d.items()} for k, d in extra.items()}
+        p, k, locked = (None, None, None) if mom is None else (mom[idx, 0:3], mom[idx, 3:6], mom[idx, 6:9])
+        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err, p, k, reaction=reaction,
+                          wrench=None if wrench is None else wrench[idx], extra=extra,
+                          locked=locked if self.sm.wheels else None)
 
     def _disturbances(self, ts, qs) -> np.ndarray:
         """The disturbances' wrench [f; n] (base frame) at each time and configuration (``disturbances``)."""
@@ -146,7 +176,7 @@ class CompiledSimulation:
         from sms_cli.sim.laws.plant_models import SystemBody
 
         law = self.law
-        if law is None:
+        if law is None or hasattr(law, "actuate"):  # none, or a momentum law (_momentum_args)
             return NO_LAW
         b = law.body
         _, _, J, G, Js, body_code, step = NO_LAW
@@ -157,6 +187,17 @@ class CompiledSimulation:
             J, G, Js = b.J, b.G, b.Js
         f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
         return int(law.code), f(law.par), f(J), f(G), f(Js), body_code, step
+
+    def _momentum_args(self):
+        """run_ticks's momentum-law arguments (``momentum_control``): code (0: none), the model tuple, gains, state
+        (the law's own ``mem``, so its ``lyapunov_terms`` reads what the loop wrote) and the last W (1,)."""
+        from sms_cli.sim.compiled.kernels import NO_MOMENTUM_LAW
+
+        law = self.law
+        if not hasattr(law, "actuate"):
+            return NO_MOMENTUM_LAW
+        model = law.model_args(self.sm.q0)  # with real thrusters the loop recomputes it at each tick (locked_model)
+        return int(law.code), model, law.par, law.mem, np.zeros(1)
 
     def _arm_args(self):
         """run_ticks's arm arguments: coordinates, law (its ``code``, parameter rows, wrap mask; −1: none),
@@ -227,7 +268,10 @@ class CompiledSimulation:
 
     # ------------------------------------------------------------------ main loop
     def run(self):
-        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED, X_N, X_REF, run_ticks
+        from sms_cli.sim.compiled.loop import (ARM_BLOCKS, NON_FINITE, RATE_LIMIT, RUNNING, SETTLED, STOP_FAILED, X_N, X_REF,
+                                               run_ticks)
+        from sms_cli.sim.compiled.momentum_control import locked_velocity
+        from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.engine import build_result, phase_event
         from sms_cli.sim.references import AttitudeProfile, JointProfile
@@ -236,13 +280,18 @@ class CompiledSimulation:
         q, v = sm.q0.astype(float).copy(), sm.v0.astype(float).copy()
         nw = wh.n
         wheel_v = np.asarray(sm.idx.wheels, dtype=np.int64)
-        memory = self.law.memory if self.law is not None else np.zeros(4)
+        memory = self.law.memory if hasattr(self.law, "memory") else np.zeros(4)  # the attitude law's state
         eff = wh.spin.astype(float).copy()
         fr = spec.wheel_friction
         wheel_args = (wheel_v, np.ascontiguousarray(wh.A_pinv), np.ascontiguousarray(wh.null), wh.spin.astype(float),
                       float(spec.allocation.null_space_gain), float(spec.allocation.target_speed),
                       wh.max_torque.astype(float), wh.max_speed.astype(float), float(fr.coulomb), float(fr.viscous))
         law_args = self._law_args()
+        mom_args = self._momentum_args()
+        mlaw = mom_args[0] > 0
+        thr = self.thr
+        lyap = LyapunovSeries(self.law, (lambda _q: self.law.model_args()) if thr is None else thr.law_model) if mlaw else None
+        thr_args = NO_THRUSTERS if thr is None else thr.args(False)
         arm_args = self._arm_args()
         stop_args = self._stop_args()
         n_arm, ns, stop_on = len(sm.arm), self.stop_table.n, stop_args[0]
@@ -254,14 +303,18 @@ class CompiledSimulation:
         status, why = "completed", ""
         spans: list[tuple[int, float, float]] = []
         pieces: list[dict] = []
+        propellant: dict[int, tuple[float, float]] = {}  # phase index -> propellant used at its start, at its end (kg)
         last_T = np.zeros(3)
         if self.rec is not None:  # the initial state is part of the recording
             self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
-                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None])
+                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None],
+                         extra={**(thr.initial_topics() if thr else {}),
+                                **(lyap.topic(lyap.terms(q, v, q_att_ref)[None]) if mlaw else {})} or None)
         wall0 = time.perf_counter()
         try:
             for ip, phase in enumerate(spec.phases):
                 t_phase0 = t
+                used0 = thr.used if thr else 0.0
                 if self.rec is not None:
                     self.rec.write_event(t, "phase", phase_event(phase))
                 if phase.attach or phase.detach or phase.base_mode == "fixed" or held:
@@ -276,6 +329,8 @@ class CompiledSimulation:
                 torque_limit = np.inf if spec.attitude_torque_limit is None else float(spec.attitude_torque_limit)
                 settle_tol = float(phase.until_settled) if phase.until_settled is not None else -1.0
                 settled = np.array([np.nan])
+                if mlaw:  # W at the phase start (the Python loop's _lyapunov before the first tick)
+                    mom_args[4][0] = lyap.phase_start(ip, q, v, att.at(0.0).quat)
                 joints = JointProfile(q_arm_ref, [a.name for a in sm.arm], phase.waypoints, phase.joint_profile)
                 ref_times, ref_points = joints.arrays
                 n_ticks = int(round(phase.duration * spec.control_rate))
@@ -286,18 +341,46 @@ class CompiledSimulation:
                     tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
                           "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
                           "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m),
-                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)), "x": np.empty((m, X_N))}
+                          "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)), "x": np.empty((m, X_N)),
+                          "locked": np.empty((m if mlaw else 0, 3)), "lyapunov": np.empty(m if mlaw else 0),
+                          "wrench": np.zeros((m if mlaw else 0, 6))}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
+                    st_lyap = np.empty((ms if mlaw else 0, lyap.width if mlaw else 0))
+                    st_thr, st_mom = thr.step_arrays(ms) if thr else (np.empty((0, 1)), np.empty((0, 9)))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
                     t_start, q_start = t, q.copy()  # the slice's first step starts here (its disturbances)
-                    ticks, n_steps, code = run_ticks(
-                        *self._tree_args(), *wheel_args, law_on, thrusters, torque_limit, *law_args, att.params, settle_tol,
-                        float(phase.settle_time), *arm_args, ref_times, ref_points, joints.step, t_phase0, *stop_args,
-                        *rr_args, self.dist, t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
-                        q, v, memory, eff, settled, tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"],
-                        tr["saturated"], tr["base_torque"], tr["momentum"], tr["energy"], tr["arm"], tr["x"], st_t, st_q,
-                        st_v, st_tw, ev, ev_n)
-                    piece = {k: a[:ticks] for k, a in tr.items()}
+                    tr_rows = [tr[k] for k in ("t", "att_err", "wheel_speed", "wheel_torque", "saturated", "base_torque",
+                                               "momentum", "energy", "arm", "x", "locked", "lyapunov", "wrench")]
+
+                    def call(k0, mk, s0, t0, thr_args, _tr=tr_rows, _st=(st_t, st_q, st_v, st_tw, st_lyap), _s2=(st_thr, st_mom),
+                             _phase=(law_on, thrusters, att.params, settle_tol, phase, ref_times, ref_points, joints, t_phase0, tick0,
+                                     rr_args)):
+                        """run_ticks on the slice's ticks k0.. (mk of them) and steps s0.., from time t0."""
+                        (law_on_, thrusters_, att_prof_, settle_tol_, phase_, ref_times_, ref_points_, joints_, t_phase0_, tick0_,
+                         rr_args_) = _phase
+                        return run_ticks(
+                            *self._tree_args(), *wheel_args, law_on_, thrusters_, torque_limit, *law_args, att_prof_, settle_tol_,
+                            float(phase_.settle_time), *mom_args, *arm_args, ref_times_, ref_points_, joints_.step, t_phase0_,
+                            *stop_args, *rr_args_, self.dist, *thr_args, t0, float(spec.dt), self.n_sub, tick0_ + k0, mk,
+                            float(spec.divergence.max_rate), q, v, memory, eff, settled, *(a[k0:k0 + mk] for a in _tr),
+                            *(a[s0:] for a in _st), *(a[s0:] for a in _s2), ev, ev_n)
+
+                    if thr is None:
+                        ticks, n_steps, code = call(0, m, 0, t, thr_args)
+                    else:  # one tick per call: probe the law's wrench, allocate it (the LP), step through the firings
+                        ticks, n_steps, code, t_now = 0, 0, RUNNING, t
+                        while ticks < m and code == RUNNING:
+                            saved = memory.copy(), mom_args[3].copy()
+                            call(ticks, 1, n_steps, t_now, thr.args(True))
+                            memory[:], mom_args[3][:] = saved  # the probe's control ran on the laws' state: undo
+                            thr.command(t_now)
+                            k1, s1, code = call(ticks, 1, n_steps, t_now, thr.args(False))
+                            tr["saturated"][ticks] |= thr.sat
+                            if k1 == 0:
+                                break
+                            ticks, n_steps = ticks + k1, n_steps + s1
+                            t_now = float(st_t[n_steps - 1]) if n_steps else t_now
+                    piece = {k: a[:ticks] for k, a in tr.items() if mlaw or k not in ("locked", "lyapunov", "wrench")}
                     piece["phase"] = np.full(ticks, ip)
                     piece["segment"] = np.full(ticks, segment)
                     pieces.append(piece)
@@ -306,11 +389,25 @@ class CompiledSimulation:
                     if n_steps:
                         t = float(st_t[n_steps - 1])
                         steps += n_steps
+                        if mlaw:
+                            lyap.add(ip, st_lyap[:n_steps])
                         if self.rec is not None:
                             wrench = None
-                            if self.record_wrench:  # the law's torque of each tick, held over its plant steps
+                            extra, st_m = {}, None
+                            if thr is not None:  # the firings' wrench per step, the thrusters' topics, the momenta
+                                held_cmd = np.array([c for c, _, _, _ in thr.ticks[-ticks:]]) if ticks else np.zeros((0, 6))
+                                delivered, extra = thr.topics(st_thr[:n_steps],
+                                                              np.repeat(held_cmd, self.n_sub, axis=0)[:n_steps])
+                                st_m = st_mom[:n_steps]
+                            if mlaw:
+                                extra.update(lyap.topic(st_lyap[:n_steps]))
+                            if self.record_wrench and thr is not None:
+                                wrench = delivered
+                            elif self.record_wrench:  # the law's torque of each tick, held over its plant steps
                                 wrench = np.zeros((n_steps, 6))
-                                if law_on and thrusters:
+                                if law_on and mlaw:  # a momentum law's whole wrench (ideal source)
+                                    wrench[:] = np.repeat(piece["wrench"], self.n_sub, axis=0)[:n_steps]
+                                elif law_on and thrusters:
                                     wrench[:, 3:6] = np.repeat(piece["base_torque"], self.n_sub, axis=0)[:n_steps]
                                 if self.dist.shape[0]:  # plus the disturbances at each step's start
                                     wrench += self._disturbances(np.concatenate([[t_start], st_t[:n_steps - 1]]),
@@ -319,7 +416,7 @@ class CompiledSimulation:
                                                            self.n_sub, axis=0)[:n_steps]
                             self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps],
                                                np.repeat(piece["x"][:, X_REF:X_REF + 4], self.n_sub, axis=0)[:n_steps],
-                                               wrench, hold(4), hold(1), ev[:ev_n[0]], held)
+                                               wrench, hold(4), hold(1), ev[:ev_n[0]], held, extra or None, st_m)
                     self.progress.update(t)
                     if code == NON_FINITE:
                         raise _Stop("the state became non-finite")
@@ -332,6 +429,7 @@ class CompiledSimulation:
                         break
                     tick0 += ticks
                 spans.append((ip, t_phase0, t))
+                propellant[ip] = (used0, thr.used if thr else 0.0)
                 q_att_ref = att.at(phase.duration).quat if phase.attitude is not None else q_att_ref
                 q_arm_ref = rr_args[-1].copy() if phase.end_effector is not None else joints.final
         except _Stop as exc:
@@ -345,35 +443,62 @@ class CompiledSimulation:
             self.rec.write_event(t, "interrupted", {"t": t}, level="warning")
         finally:
             self.progress.close()
+        if spans and spans[-1][0] not in propellant:  # a phase ended by an interruption
+            propellant[spans[-1][0]] = (used0, thr.used if thr else 0.0)
         wall = time.perf_counter() - wall0
         filled = [p for p in pieces if p["t"].size]
         if status == "completed" and filled:  # the final state, as the Python loop adds it
-            _, _, mom = self._samples(q[None], v[None])
+            _, _, mom = self._samples(q[None], v[None]) if thr is None else (None, None, thr.momenta(q, v)[None])
             pieces.append({"t": np.array([t]), "att_err": np.array([np.linalg.norm(attitude_error(q_att_ref, q[3:7]))]),
                            "wheel_speed": v[wheel_v][None], "wheel_torque": filled[-1]["wheel_torque"][-1:],
                            "saturated": np.array([False]), "base_torque": last_T[None],
                            "momentum": np.concatenate([mom[0, 0:3], mom[0, 6:9]])[None], "energy": mom[0, 9:10],
                            "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled),
                            "segment": np.array([segment]), "x": self._final_x_row(q, v, q_att_ref, held, filled)})
+            if mlaw:  # μ at the final state and the last step's W (the Python loop's last _trace)
+                mu = np.empty((1, 3))
+                locked_velocity(v, mom_args[1] if thr is None else thr.law_model(q), mu[0])
+                pieces[-1].update({"locked": mu, "lyapunov": mom_args[4].copy()})
         trace = self._trace_arrays(pieces, nw, n_arm)
-        return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
+        if mlaw:
+            trace["locked"], trace["lyapunov"] = (np.concatenate([p[k] for p in pieces]) for k in ("locked", "lyapunov"))
+        if thr is not None and trace["t"].size:
+            trace.update(thr.trace(final=trace["t"].size > len(thr.ticks)))
+        result = build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
+        if mlaw:
+            lyap.metrics(result, spans)
+        if thr is not None:  # propellant per phase, per attitude law and overall (kg)
+            for summary, (ip, _, _) in zip(result.phases, spans):
+                used = propellant.get(ip, (0.0, 0.0))
+                summary["propellant_used_kg"] = used[1] - used[0]
+            result.overall["propellant_used_kg"] = thr.used
+            result.overall["propellant_used_by_law_kg"] = {self.law_name: thr.used}
+        return result
 
-    def _record_slice(self, times, qs, vs, tau_w, refs, wrench, tau_m, joint_ref, events, held=False) -> None:
-        """``_record`` of a slice's steps (``refs``: the attitude reference per step; ``held``: the base held)
-        with its joint-stop events in time order (an event before the samples at and after its time)."""
+    def _record_slice(self, times, qs, vs, tau_w, refs, wrench, tau_m, joint_ref, events, held=False, extra=None,
+                      mom=None) -> None:
+        """``_record`` of a slice's steps (``refs``: the attitude reference per step; ``held``: the base held;
+        ``extra``, ``mom``: ``_record``'s, per step) with its joint-stop events in time order (an event before
+        the samples at and after its time)."""
+        def part(sl):  # the extra topics and momenta of the steps sl
+            ex = None if extra is None else {k: {f: x[sl] for f, x in d.items()} for k, d in extra.items()}
+            return ex, None if mom is None else mom[sl]
+
         start = 0
         for row in events:
             stop = int(np.searchsorted(times, row[0], side="left"))
             if stop > start:
                 sl = slice(start, stop)
+                ex, mo = part(sl)
                 self._record(times[sl], qs[sl], vs[sl], tau_w[sl], refs[sl], wrench=None if wrench is None else wrench[sl],
-                             tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held)
+                             tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held, extra=ex, mom=mo)
                 start = stop
             self._write_events(row[None])
         if start < times.size:
             sl = slice(start, None)
+            ex, mo = part(sl)
             self._record(times[sl], qs[sl], vs[sl], tau_w[sl], refs[sl], wrench=None if wrench is None else wrench[sl],
-                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held)
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held, extra=ex, mom=mo)
 
     def _final_x_row(self, q, v, q_att_ref, held, filled) -> np.ndarray:
         """The loop.X_* row of the final state: the last reference, no end-effector error, the held base's
@@ -438,6 +563,55 @@ class CompiledSimulation:
             if not np.isfinite(a["base_reaction"]).all(axis=1).any():  # the Python loop has none while the base is held
                 a["base_motion"] = arm[:, 7 * n_arm:]
         return a
+
+
+class LyapunovSeries:
+    """A momentum law's W and its terms as the Python loop keeps them (``Simulation._lyapunov``): evaluated at each
+    phase start and after every plant step, recorded on ``/control/lyapunov`` (the law's ``terms``, in name order)
+    and summarised per phase (``sms_cli.sim.laws.momentum.lyapunov_metrics``)."""
+
+    def __init__(self, law, model):
+        from sms_cli.sim.compiled import momentum_laws as K
+
+        self.law = law
+        self.model = model  # q -> the law's model tuple at q and the current mass (momentum_control)
+        self.width = K.T_N
+        self.names = sorted(law.terms)
+        self.cols = [K.TERM_NAMES.index(n) for n in self.names]
+        self._W, self._stage, self._pos, self._phase = K.T_W, K.T_STAGE, K.T_POSITION_ERROR, []
+        self.rows: list[np.ndarray] = []
+
+    def terms(self, q, v, ref) -> np.ndarray:
+        """The law's W terms (T_N,) on (q, v) for the reference ``ref``, with its current state."""
+        from sms_cli.sim.compiled import momentum_laws as K
+
+        out = np.empty(self.width)
+        K.momentum_lyapunov(int(self.law.code), np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
+                            np.ascontiguousarray(ref, dtype=float), *self.model(np.ascontiguousarray(q, dtype=float)), self.law.par, self.law.mem, out)
+        return out
+
+    def phase_start(self, ip: int, q, v, ref) -> float:
+        """W at phase ``ip``'s start (added to the series); returned for the loop's first ticks."""
+        row = self.terms(q, v, ref)
+        self.add(ip, row[None])
+        return float(row[self._W])
+
+    def add(self, ip: int, rows: np.ndarray) -> None:
+        self.rows.append(rows.copy())
+        self._phase.append(np.full(rows.shape[0], ip))
+
+    def topic(self, rows: np.ndarray) -> dict:
+        """``/control/lyapunov`` of these rows: {field: values}."""
+        return {"/control/lyapunov": {n: rows[:, c] for n, c in zip(self.names, self.cols)}}
+
+    def metrics(self, result, spans) -> None:
+        from sms_cli.sim.laws.momentum import lyapunov_metrics
+
+        if not self.rows:
+            return lyapunov_metrics(result, spans, np.zeros(0, dtype=int), np.zeros(0))
+        a, phase = np.concatenate(self.rows), np.concatenate(self._phase)
+        lyapunov_metrics(result, spans, phase, a[:, self._W], a[:, self._stage] if "stage" in self.names else None,
+                         a[:, self._pos] if "position_error" in self.names else None)
 
 
 class _Stop(Exception):

@@ -67,6 +67,7 @@ class _MomentumLaw:
     uses_wrench = False
     needs_wheels = True
     kernel = ""
+    code = 0  # the kernel's code in ``momentum_laws.momentum_law`` (the compiled loop's dispatch)
     terms: tuple = ()
 
     def __init__(self, sm, kp, shaping: bool):
@@ -113,6 +114,16 @@ class _MomentumLaw:
 
     def _args(self, q) -> tuple:
         return self._args0 if self._fixed_mass else self._model_args(self._quantities(q))
+
+    @property
+    def fixed_mass(self) -> bool:
+        """Whether the law's locked/shape quantities are constant (no propellant spent): then ``model_args``."""
+        return self._fixed_mass
+
+    def model_args(self, q=None) -> tuple:
+        """The kernels' model arguments (wheels, mass, com_base, Tv, I, G, J, Λ, M_θ) a compiled loop passes to
+        ``momentum_laws.momentum_law``: constant while the mass is fixed, else at q and the model's current mass."""
+        return self._args0 if self._fixed_mass else self._model_args(self._quantities(np.asarray(q, float)))
 
     def locked_velocity(self, q, v) -> np.ndarray:
         """μ (3,) rad/s, base frame, from the law's locked/shape quantities (cached while the mass is fixed)."""
@@ -165,6 +176,7 @@ class WheelsFreeFloating(_MomentumLaw):
     Computed by ``sms_cli.sim.compiled.momentum_laws.wheels_free_floating``."""
 
     kernel = "wheels_free_floating"
+    code = 1  # momentum_laws.WHEELS_FREE_FLOATING
     terms = ("locked", "shape", "potential", "W", "dissipation")
 
     def __init__(self, sm, kp, kd, inertia_shaping: bool = False):
@@ -191,6 +203,7 @@ class FreeFlying(_MomentumLaw):
 
     uses_wrench = True
     kernel = "free_flying"
+    code = 2  # momentum_laws.FREE_FLYING
 
     def __init__(self, sm, kp, kd_base, kd_wheels, inertia_shaping: bool = True, kp_position=None,
                  kd_position=None, target_com=None):
@@ -240,6 +253,7 @@ class Hierarchical(_MomentumLaw):
 
     uses_wrench = True
     kernel = "hierarchical"
+    code = 3  # momentum_laws.HIERARCHICAL
     terms = ("locked", "shape", "potential", "stage", "W", "dissipation", "residual")
 
     def __init__(self, sm, kp, kd_base, kd_wheels, mu_threshold: float, inertia_shaping: bool = True):
@@ -274,6 +288,7 @@ class Se3PD(FreeFlying):
 
     needs_wheels = False
     kernel = "se3_pd"
+    code = 4  # momentum_laws.SE3_PD
 
     def __init__(self, sm, kp, kd, kp_position=None, kd_position=None, target_com=None):
         _MomentumLaw.__init__(self, sm, kp, False)
@@ -293,8 +308,34 @@ class QuaternionLyapunov(Se3PD):
     Computed by ``sms_cli.sim.compiled.momentum_laws.quaternion_lyapunov``."""
 
     kernel = "quaternion_lyapunov"
+    code = 5  # momentum_laws.QUATERNION_LYAPUNOV
 
     def __init__(self, sm, k, kd, kp_position=None, kd_position=None, target_com=None):
         super().__init__(sm, np.full(3, float(k)), kd, kp_position, kd_position, target_com)
         self.k = float(k)
         self.par[_kernels().P_K] = self.k
+
+
+def lyapunov_metrics(result, spans, phase: np.ndarray, W: np.ndarray, stage: np.ndarray | None = None,
+                     position_error: np.ndarray | None = None) -> None:
+    """Add W's figures to ``result`` (a ``SimResult``) from the series of W evaluations (the phase start's, then one
+    per plant step; ``phase``: their phase indices; ``stage``: the hierarchical law's task, None: 1; ``position_error``:
+    the translation PD's |Δx|, m, None without it). Per phase of ``spans``: W at its start and end, the largest increase
+    of W over one plant step and the sum of the increases (within one stage); overall: the largest of them."""
+    worst = 0.0
+    stage = np.ones_like(W) if stage is None else stage
+    for summary, (ip, _, _) in zip(result.phases, spans):
+        rows = phase == ip
+        if not np.any(rows):
+            continue
+        w, st = W[rows], stage[rows]
+        inc = np.diff(w)[np.diff(st) == 0] if w.size > 1 else np.zeros(0)
+        up = float(inc.max()) if inc.size else 0.0
+        summary["lyapunov_start"], summary["lyapunov_end"] = float(w[0]), float(w[-1])
+        summary["lyapunov_increase_max"] = up
+        summary["lyapunov_increase_total"] = float(inc[inc > 0].sum()) if inc.size else 0.0
+        if position_error is not None:  # translation PD (3.7): the CoM's distance to its target (m)
+            dist = position_error[rows]
+            summary["com_position_error_m"] = {"max": float(dist.max()), "final": float(dist[-1])}
+        worst = max(worst, up)
+    result.overall["lyapunov_increase_max"] = worst

@@ -1,0 +1,86 @@
+"""The momentum laws of Vicariotto 2023 (``momentum_laws``) in the compiled loop: the control of one tick
+(the law, then the wheels' torque limit) and the quantities the Python loop records for them (the locked
+velocity μ per tick, W and its terms after every plant step). Same sequence as
+``sms_cli.sim.engine.Simulation._control`` / ``_trace`` / ``_lyapunov`` for a law with ``actuate``.
+
+``model`` is the tuple of the kernels' model arguments (wheels, mass, com_base, Tv, I, G, J, Λ, M_θ;
+``sms_cli.sim.laws.momentum._MomentumLaw.model_args``), constant while the mass is fixed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled.momentum_laws import T_W, momentum_law, momentum_lyapunov
+
+
+@njit(**JIT)
+def momentum_control(code, q, v, ref, model, par, mem, max_torque, tau_w, wrench):
+    """The law of ``code`` on the state (q, v) for the reference ``ref`` (xyzw): wheel motor torques (N m) into
+    ``tau_w``, clipped to ±max_torque (``WheelArray.clip_torque``), and the base wrench ``[f; n]`` (base frame,
+    about the base origin, N and N m) into ``wrench``; updates ``mem``. Returns whether a wheel saturated."""
+    wheels, mass, com_base, Tv, I, G, J, Lam, M_theta = model
+    momentum_law(code, q, v, ref, wheels, mass, com_base, Tv, I, G, J, Lam, M_theta, par, mem, tau_w, wrench)
+    sat = False
+    for i in range(tau_w.shape[0]):
+        lim = max_torque[i]
+        if abs(tau_w[i]) > lim * (1 + 1e-12):
+            sat = True
+        tau_w[i] = min(max(tau_w[i], -lim), lim)
+    return sat
+
+
+@njit(**JIT)
+def locked_velocity(v, model, mu):
+    """μ = ω + Λθ̇ (rad/s, base frame; Vicariotto 2023 (4.8)) into ``mu``: the law's ``locked_velocity``."""
+    wheels, Lam = model[0], model[7]
+    for i in range(3):
+        s = 0.0
+        for j in range(wheels.shape[0]):
+            s += Lam[i, j] * v[wheels[j]]
+        mu[i] = v[3 + i] + s
+
+
+@njit(**JIT)
+def lyapunov_terms(code, q, v, ref, model, par, mem, out):
+    """W and its terms (layout ``momentum_laws.T_*``) of the law of ``code`` on (q, v) into ``out``; returns W."""
+    wheels, mass, com_base, Tv, I, G, J, Lam, M_theta = model
+    momentum_lyapunov(code, q, v, ref, wheels, mass, com_base, Tv, I, G, J, Lam, M_theta, par, mem, out)
+    return out[T_W]
+
+
+@njit(**JIT)
+def locked_model(M, wheels):
+    """The model tuple of the rigid mass matrix M (nv × nv, ``mass_matrix``): ``sms_cli.dynamics.locked.locked_shape``
+    and ``_MomentumLaw._model_args`` for a base with wheels only, for a mass that changes (propellant spent):
+    A = M_vv⁻¹[M_vω, M_vs] (= Tv), I the translation-reduced angular block (symmetrised), Λ_s = I⁻¹(reduced
+    coupling), M_θ = M_ss − M_vsᵀA_s − (IΛ_s)ᵀΛ_s (symmetrised), J, G J = IΛ_s on the wheel columns."""
+    nv = M.shape[0]
+    ns = nv - 6
+    n = wheels.shape[0]
+    A = np.linalg.solve(np.ascontiguousarray(M[0:3, 0:3]), np.ascontiguousarray(M[0:3, 3:]))
+    red = np.empty((3, nv - 3))
+    for i in range(3):
+        for j in range(nv - 3):
+            red[i, j] = M[3 + i, 3 + j] - (M[3 + i, 0] * A[0, j] + M[3 + i, 1] * A[1, j] + M[3 + i, 2] * A[2, j])
+    I = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            I[i, j] = 0.5 * (red[i, j] + red[j, i])
+    Lam_s = np.linalg.solve(I, np.ascontiguousarray(red[:, 3:]))
+    C_s = I @ Lam_s
+    Mt = np.ascontiguousarray(M[6:, 6:]) - np.ascontiguousarray(M[0:3, 6:]).T @ np.ascontiguousarray(A[:, 3:]) \
+        - np.ascontiguousarray(C_s.T) @ Lam_s
+    M_theta = 0.5 * (Mt + Mt.T)
+    J, G, Lam = np.empty(n), np.empty((3, n)), np.empty((3, n))
+    for k in range(n):
+        c = wheels[k] - 6
+        J[k] = M[wheels[k], wheels[k]]
+        for i in range(3):
+            G[i, k] = C_s[i, c] / J[k]
+            Lam[i, k] = Lam_s[i, c]
+    com = np.empty(3)
+    com[0], com[1], com[2] = -A[2, 1], -A[0, 2], -A[1, 0]
+    return wheels, M[0, 0], com, np.ascontiguousarray(A), I, G, J, Lam, np.ascontiguousarray(M_theta[:ns, :ns])
