@@ -236,36 +236,49 @@ def force_cross(v, f, out):
 
 @njit(**_HOT)
 def add_inertia_to_parent(R, p, Ia, J, K, out):
-    """out += Xᵀ Ia X for X = motion_act_inv(R, p): a 6×6 inertia moved to the parent frame.
-    By blocks: J = diag(R) Ia diag(Rᵀ) = [[A, B], [Bᵀ, C]], then with P = [p]×
-    Xᵀ Ia X = [[A, B − A P], [Bᵀ − (A P)ᵀ, C − Bᵀ P − (Bᵀ P)ᵀ − P A P)]] (J, K: 6×6 scratch)."""
-    for bi in range(2):
-        for bj in range(2):
-            for a in range(3):  # K block = R · Ia block
-                for b in range(3):
-                    K[3 * bi + a, 3 * bj + b] = (R[a, 0] * Ia[3 * bi, 3 * bj + b] + R[a, 1] * Ia[3 * bi + 1, 3 * bj + b]
-                                                 + R[a, 2] * Ia[3 * bi + 2, 3 * bj + b])
-            for a in range(3):  # J block = K block · Rᵀ
-                for b in range(3):
-                    J[3 * bi + a, 3 * bj + b] = (K[3 * bi + a, 3 * bj] * R[b, 0] + K[3 * bi + a, 3 * bj + 1] * R[b, 1]
-                                                 + K[3 * bi + a, 3 * bj + 2] * R[b, 2])
+    """out += Xᵀ Ia X for X = motion_act_inv(R, p): a symmetric 6×6 inertia moved to the parent frame,
+    on the LOWER triangle of out only (its upper triangle is left as is; Ia is read whole). By 3×3
+    blocks, Ia = [[A, Dᵀ], [D, C]] (A, C symmetric): rotated A' = R A Rᵀ, D' = R D Rᵀ, C' = R C Rᵀ
+    (the symmetric ones on one triangle), then with P = [p]× and E = A' P, F = D' P
+    Xᵀ Ia X = [[A', ·], [D' + P A', C' − F − Fᵀ − P E]], D' + P A' = D' − Eᵀ (J, K: 6×6 scratch)."""
+    for a in range(3):  # K = R · (A, D, C)
+        for b in range(3):
+            K[a, b] = R[a, 0] * Ia[0, b] + R[a, 1] * Ia[1, b] + R[a, 2] * Ia[2, b]
+            K[3 + a, b] = R[a, 0] * Ia[3, b] + R[a, 1] * Ia[4, b] + R[a, 2] * Ia[5, b]
+            K[3 + a, 3 + b] = R[a, 0] * Ia[3, 3 + b] + R[a, 1] * Ia[4, 3 + b] + R[a, 2] * Ia[5, 3 + b]
+    for a in range(3):  # J = K · Rᵀ: A', C' on their lower triangles (A' mirrored), D' whole
+        for b in range(3):
+            J[3 + a, b] = K[3 + a, 0] * R[b, 0] + K[3 + a, 1] * R[b, 1] + K[3 + a, 2] * R[b, 2]
+        for b in range(a + 1):
+            x = K[a, 0] * R[b, 0] + K[a, 1] * R[b, 1] + K[a, 2] * R[b, 2]
+            J[a, b] = x
+            J[b, a] = x
+            J[3 + a, 3 + b] = K[3 + a, 3] * R[b, 0] + K[3 + a, 4] * R[b, 1] + K[3 + a, 5] * R[b, 2]
     p0, p1, p2 = p[0], p[1], p[2]
     for a in range(3):  # row vectors times P: (x P) = (x1 p2 − x2 p1, x2 p0 − x0 p2, x0 p1 − x1 p0)
-        for blk in range(2):  # K[:3, :3] = A P, K[3:, 3:] = Bᵀ P
+        for blk in range(2):  # K[:3, :3] = E = A' P, K[3:, :3] = F = D' P
             x0, x1, x2 = J[3 * blk + a, 0], J[3 * blk + a, 1], J[3 * blk + a, 2]
-            K[3 * blk + a, 3 * blk] = x1 * p2 - x2 * p1
-            K[3 * blk + a, 3 * blk + 1] = x2 * p0 - x0 * p2
-            K[3 * blk + a, 3 * blk + 2] = x0 * p1 - x1 * p0
+            K[3 * blk + a, 0] = x1 * p2 - x2 * p1
+            K[3 * blk + a, 1] = x2 * p0 - x0 * p2
+            K[3 * blk + a, 2] = x0 * p1 - x1 * p0
     for a in range(3):
-        for b in range(3):
+        for b in range(a + 1):
             out[a, b] += J[a, b]
-            out[a, 3 + b] += J[a, 3 + b] - K[a, b]
+        for b in range(3):
             out[3 + b, a] += J[3 + b, a] - K[a, b]
     for b in range(3):
-        y0, y1, y2 = K[0, b], K[1, b], K[2, b]  # column b of A P; P y = p × y
+        y0, y1, y2 = K[0, b], K[1, b], K[2, b]  # column b of E; P y = p × y
         py = (p1 * y2 - p2 * y1, p2 * y0 - p0 * y2, p0 * y1 - p1 * y0)
-        for a in range(3):
-            out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, 3 + b] - K[3 + b, 3 + a] - py[a]
+        for a in range(b, 3):
+            out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, b] - K[3 + b, a] - py[a]
+
+
+@njit(**_HOT)
+def mirror_lower(M):
+    """Copy the lower triangle of the 6×6 M onto its upper triangle (M symmetric)."""
+    for a in range(6):
+        for b in range(a):
+            M[b, a] = M[a, b]
 
 
 @njit(**_HOT)
@@ -365,27 +378,25 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             for a in range(6):
                 pa[a] = S[a] * qd
             motion_cross(vel[i], pa, c[i])
-    for i in range(n - 1, -1, -1):
+    for i in range(n - 1, -1, -1):  # the children add to the lower triangle of IA (symmetric) only
         if kind[i] == FREE_FLYER:
             continue
         iv = idx_v[i]
-        _subspace(kind[i], axis[i], S)
+        IAi = IA[i]
+        mirror_lower(IAi)
+        off = 0 if kind[i] == PRISMATIC else 3  # S = the unit axis in the linear or the angular rows
+        ax0, ax1, ax2 = axis[i, 0], axis[i, 1], axis[i, 2]
         for a in range(6):
-            acc = 0.0
-            for b in range(6):
-                acc += IA[i, a, b] * S[b]
-            U[i, a] = acc
-        d = armature[iv]
-        s_pa = 0.0
-        for a in range(6):
-            d += S[a] * U[i, a]
-            s_pa += S[a] * pA[i, a]
+            U[i, a] = IAi[a, off] * ax0 + IAi[a, off + 1] * ax1 + IAi[a, off + 2] * ax2
+        d = armature[iv] + ax0 * U[i, off] + ax1 * U[i, off + 1] + ax2 * U[i, off + 2]
         D[i] = d
-        u[i] = tau[iv] - s_pa
+        u[i] = tau[iv] - (ax0 * pA[i, off] + ax1 * pA[i, off + 1] + ax2 * pA[i, off + 2])
         pi = parent[i]
         for a in range(6):
-            for b in range(6):
-                Ia[a, b] = IA[i, a, b] - U[i, a] * U[i, b] / d
+            for b in range(a + 1):
+                x = IAi[a, b] - U[i, a] * U[i, b] / d
+                Ia[a, b] = x
+                Ia[b, a] = x
         for a in range(6):
             acc = pA[i, a] + U[i, a] * u[i] / d
             for b in range(6):
@@ -396,7 +407,7 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             add_inertia_to_parent(R_rel[i], p_rel[i], Ia, XtIa, X, IA[pi])
         else:
             for a in range(6):
-                for b in range(6):
+                for b in range(a + 1):
                     IA[pi, a, b] += leaf_IA[i, a, b]
         force_act(R_rel[i], p_rel[i], pa, tmp)
         for a in range(6):
@@ -413,14 +424,14 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
         motion_act_inv(R_rel[i], p_rel[i], acc6[parent[i]], acc6[i])
         for a in range(6):
             acc6[i, a] += c[i, a]
-        _subspace(kind[i], axis[i], S)
         ua = 0.0
         for a in range(6):
             ua += U[i, a] * acc6[i, a]
         qdd = (u[i] - ua) / D[i]
         vdot[iv] = qdd
-        for a in range(6):
-            acc6[i, a] += S[a] * qdd
+        off = 0 if kind[i] == PRISMATIC else 3
+        for a in range(3):
+            acc6[i, off + a] += axis[i, a] * qdd
 
 
 @njit(**_HOT)
@@ -784,7 +795,8 @@ def mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M):
             for b in range(6):
                 Ic[i, a, b] = inertia[i, a, b]
     J, K = np.empty((6, 6)), np.empty((6, 6))
-    for i in range(n - 1, -1, -1):
+    for i in range(n - 1, -1, -1):  # the children add to the lower triangle of Ic (symmetric) only
+        mirror_lower(Ic[i])
         if parent[i] >= 0:
             add_inertia_to_parent(R_rel[i], p_rel[i], Ic[i], J, K, Ic[parent[i]])
     for a in range(nv):
