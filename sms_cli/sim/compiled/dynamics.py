@@ -107,26 +107,30 @@ def compose(R1, p1, R2, p2, R_out, p_out):
 @njit(**_HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
-    the joint's fixed placement composed with its motion (rotation Rj, translation tj)."""
-    Rj = np.empty((3, 3))
-    tj = np.zeros(3)
+    the joint's fixed placement composed with its motion (rotation Rj, translation tj); Rj is built
+    in R_out[i] and multiplied by the placement in place (no scratch array to allocate)."""
     for i in range(kind.shape[0]):
         k = kind[i]
         iq = idx_q[i]
+        Rj = R_out[i]
+        t0 = t1 = t2 = 0.0
         if k == FREE_FLYER:
             quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], Rj)
-            tj[0], tj[1], tj[2] = q[iq], q[iq + 1], q[iq + 2]
+            t0, t1, t2 = q[iq], q[iq + 1], q[iq + 2]
         elif k == PRISMATIC:
             axis_rotation(axis[i], 1.0, 0.0, Rj)  # identity
+            t0, t1, t2 = axis[i, 0] * q[iq], axis[i, 1] * q[iq], axis[i, 2] * q[iq]
+        elif k == REVOLUTE:
+            axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
+        else:  # REVOLUTE_UNBOUNDED: (cos, sin)
+            axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
+        PR, Pp = place_R[i], place_p[i]
+        for a in range(3):  # p_out = Pp + PR tj, R_out = PR Rj (column by column, in place)
+            p_out[i, a] = Pp[a] + PR[a, 0] * t0 + PR[a, 1] * t1 + PR[a, 2] * t2
+        for b in range(3):
+            c0, c1, c2 = Rj[0, b], Rj[1, b], Rj[2, b]
             for a in range(3):
-                tj[a] = axis[i, a] * q[iq]
-        else:
-            if k == REVOLUTE:
-                axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
-            else:  # REVOLUTE_UNBOUNDED: (cos, sin)
-                axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
-            tj[:] = 0.0
-        compose(place_R[i], place_p[i], Rj, tj, R_out[i], p_out[i])
+                Rj[a, b] = PR[a, 0] * c0 + PR[a, 1] * c1 + PR[a, 2] * c2
 
 
 @njit(**_HOT)
@@ -363,21 +367,26 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
         for a in range(6):
             acc = 0.0
             for b in range(6):
-                IA[i, a, b] = inertia[i, a, b]
                 acc += inertia[i, a, b] * vel[i, b]
             tmp[a] = acc
+            for b in range(a + 1):  # IA: the lower triangle (symmetric)
+                IA[i, a, b] = inertia[i, a, b]
         force_cross(vel[i], tmp, pA[i])
         if kind[i] == FREE_FLYER:
             for a in range(6):
                 pA[i, a] += root_f[a]
-                for b in range(6):
+                for b in range(a + 1):
                     IA[i, a, b] += root_dI[a, b]
-        else:
-            _subspace(kind[i], axis[i], S)
+        else:  # c = v × S q̇, S q̇ = the axis times q̇ in the linear (prismatic) or angular rows
             qd = v[idx_v[i]]
-            for a in range(6):
-                pa[a] = S[a] * qd
-            motion_cross(vel[i], pa, c[i])
+            w0, w1, w2 = axis[i, 0] * qd, axis[i, 1] * qd, axis[i, 2] * qd
+            v0, v1, v2, o0, o1, o2 = vel[i, 0], vel[i, 1], vel[i, 2], vel[i, 3], vel[i, 4], vel[i, 5]
+            if kind[i] == PRISMATIC:  # [ω × w; 0]
+                c[i, 0], c[i, 1], c[i, 2] = o1 * w2 - o2 * w1, o2 * w0 - o0 * w2, o0 * w1 - o1 * w0
+                c[i, 3], c[i, 4], c[i, 5] = 0.0, 0.0, 0.0
+            else:  # [v × w; ω × w]
+                c[i, 0], c[i, 1], c[i, 2] = v1 * w2 - v2 * w1, v2 * w0 - v0 * w2, v0 * w1 - v1 * w0
+                c[i, 3], c[i, 4], c[i, 5] = o1 * w2 - o2 * w1, o2 * w0 - o0 * w2, o0 * w1 - o1 * w0
     for i in range(n - 1, -1, -1):  # the children add to the lower triangle of IA (symmetric) only
         if kind[i] == FREE_FLYER:
             continue
@@ -390,15 +399,19 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             U[i, a] = IAi[a, off] * ax0 + IAi[a, off + 1] * ax1 + IAi[a, off + 2] * ax2
         d = armature[iv] + ax0 * U[i, off] + ax1 * U[i, off + 1] + ax2 * U[i, off + 2]
         D[i] = d
-        u[i] = tau[iv] - (ax0 * pA[i, off] + ax1 * pA[i, off + 1] + ax2 * pA[i, off + 2])
+        ui = tau[iv] - (ax0 * pA[i, off] + ax1 * pA[i, off + 1] + ax2 * pA[i, off + 2])
+        u[i] = ui
         pi = parent[i]
+        d_inv = 1.0 / d
+        for a in range(6):  # U D⁻¹ (Pinocchio's UDinv)
+            tmp[a] = U[i, a] * d_inv
         for a in range(6):
             for b in range(a + 1):
-                x = IAi[a, b] - U[i, a] * U[i, b] / d
+                x = IAi[a, b] - tmp[a] * U[i, b]
                 Ia[a, b] = x
                 Ia[b, a] = x
         for a in range(6):
-            acc = pA[i, a] + U[i, a] * u[i] / d
+            acc = pA[i, a] + tmp[a] * ui
             for b in range(6):
                 acc += Ia[a, b] * c[i, b]
             pa[a] = acc
@@ -500,7 +513,6 @@ def quat_exp_mul(q, w, out):
 def integrate(kind, axis, idx_q, idx_v, q, theta, out):
     """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
     n = kind.shape[0]
-    R = np.empty((3, 3))
     for i in range(n):
         iq, iv = idx_q[i], idx_v[i]
         k = kind[i]
@@ -526,9 +538,10 @@ def integrate(kind, axis, idx_q, idx_v, q, theta, out):
             l0 = px + a * c0 + b * d0
             l1 = py + a * c1 + b * d1
             l2 = pz + a * c2 + b * d2
-            quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], R)
-            for r in range(3):
-                out[iq + r] = q[iq + r] + R[r, 0] * l0 + R[r, 1] * l1 + R[r, 2] * l2
+            x, y, z, w = q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6]  # R l, R of quat_to_matrix
+            out[iq] = q[iq] + (1.0 - 2.0 * (y * y + z * z)) * l0 + 2.0 * (x * y - z * w) * l1 + 2.0 * (x * z + y * w) * l2
+            out[iq + 1] = q[iq + 1] + 2.0 * (x * y + z * w) * l0 + (1.0 - 2.0 * (x * x + z * z)) * l1 + 2.0 * (y * z - x * w) * l2
+            out[iq + 2] = q[iq + 2] + 2.0 * (x * z - y * w) * l0 + 2.0 * (y * z + x * w) * l1 + (1.0 - 2.0 * (x * x + y * y)) * l2
             quat_exp_mul(q[iq + 3:iq + 7], theta[iv + 3:iv + 6], out[iq + 3:iq + 7])
         elif k == REVOLUTE_UNBOUNDED:
             ca, sa = math.cos(theta[iv]), math.sin(theta[iv])
