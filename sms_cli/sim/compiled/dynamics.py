@@ -327,28 +327,29 @@ def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
 
 @njit(**_HOT)
 def _solve_spd6(A, b, L, out):
-    """out = A⁻¹ b for a symmetric positive definite 6×6 A (Cholesky; L is scratch)."""
+    """out = A⁻¹ b for a symmetric positive definite 6×6 A, read on its lower triangle (Cholesky
+    A = L Lᵀ; L is scratch and holds the inverse of its diagonal: 6 divisions, not 27)."""
     for j in range(6):
         d = A[j, j]
         for k in range(j):
             d -= L[j, k] * L[j, k]
-        d = math.sqrt(d)
-        L[j, j] = d
+        d_inv = 1.0 / math.sqrt(d)
+        L[j, j] = d_inv
         for i in range(j + 1, 6):
             x = A[i, j]
             for k in range(j):
                 x -= L[i, k] * L[j, k]
-            L[i, j] = x / d
+            L[i, j] = x * d_inv
     for i in range(6):
         x = b[i]
         for k in range(i):
             x -= L[i, k] * out[k]
-        out[i] = x / L[i, i]
+        out[i] = x * L[i, i]
     for i in range(5, -1, -1):
         x = out[i]
         for k in range(i + 1, 6):
             x -= L[k, i] * out[k]
-        out[i] = x / L[i, i]
+        out[i] = x * L[i, i]
 
 
 @njit(**_HOT)
