@@ -361,7 +361,7 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
     right-hand side τ − nle − [root_f; 0] (zeros for a plain rigid tree). ``leaf_IA`` gives the
     constant parent-frame articulated inertia of symmetric leaves (``tree.flatten``; NaN: none)."""
     vel, c, IA, pA, U, D, u, acc6 = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7]
-    X, Ia, XtIa, tmp, pa, S = ws[10], ws[11], ws[12], ws[13], ws[14], ws[15]
+    X, Ia, XtIa, tmp, pa = ws[10], ws[11], ws[12], ws[13], ws[14]  # (ws[15] is no longer used)
     n = parent.shape[0]
     body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
     for i in range(n):
