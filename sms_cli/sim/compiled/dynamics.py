@@ -107,26 +107,30 @@ def compose(R1, p1, R2, p2, R_out, p_out):
 @njit(**_HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
-    the joint's fixed placement composed with its motion (rotation Rj, translation tj)."""
-    Rj = np.empty((3, 3))
-    tj = np.zeros(3)
+    the joint's fixed placement composed with its motion (rotation Rj, translation tj); Rj is built
+    in R_out[i] and multiplied by the placement in place (no scratch array to allocate)."""
     for i in range(kind.shape[0]):
         k = kind[i]
         iq = idx_q[i]
+        Rj = R_out[i]
+        t0 = t1 = t2 = 0.0
         if k == FREE_FLYER:
             quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], Rj)
-            tj[0], tj[1], tj[2] = q[iq], q[iq + 1], q[iq + 2]
+            t0, t1, t2 = q[iq], q[iq + 1], q[iq + 2]
         elif k == PRISMATIC:
             axis_rotation(axis[i], 1.0, 0.0, Rj)  # identity
+            t0, t1, t2 = axis[i, 0] * q[iq], axis[i, 1] * q[iq], axis[i, 2] * q[iq]
+        elif k == REVOLUTE:
+            axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
+        else:  # REVOLUTE_UNBOUNDED: (cos, sin)
+            axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
+        PR, Pp = place_R[i], place_p[i]
+        for a in range(3):  # p_out = Pp + PR tj, R_out = PR Rj (column by column, in place)
+            p_out[i, a] = Pp[a] + PR[a, 0] * t0 + PR[a, 1] * t1 + PR[a, 2] * t2
+        for b in range(3):
+            c0, c1, c2 = Rj[0, b], Rj[1, b], Rj[2, b]
             for a in range(3):
-                tj[a] = axis[i, a] * q[iq]
-        else:
-            if k == REVOLUTE:
-                axis_rotation(axis[i], math.cos(q[iq]), math.sin(q[iq]), Rj)
-            else:  # REVOLUTE_UNBOUNDED: (cos, sin)
-                axis_rotation(axis[i], q[iq], q[iq + 1], Rj)
-            tj[:] = 0.0
-        compose(place_R[i], place_p[i], Rj, tj, R_out[i], p_out[i])
+                Rj[a, b] = PR[a, 0] * c0 + PR[a, 1] * c1 + PR[a, 2] * c2
 
 
 @njit(**_HOT)
@@ -236,36 +240,49 @@ def force_cross(v, f, out):
 
 @njit(**_HOT)
 def add_inertia_to_parent(R, p, Ia, J, K, out):
-    """out += Xᵀ Ia X for X = motion_act_inv(R, p): a 6×6 inertia moved to the parent frame.
-    By blocks: J = diag(R) Ia diag(Rᵀ) = [[A, B], [Bᵀ, C]], then with P = [p]×
-    Xᵀ Ia X = [[A, B − A P], [Bᵀ − (A P)ᵀ, C − Bᵀ P − (Bᵀ P)ᵀ − P A P)]] (J, K: 6×6 scratch)."""
-    for bi in range(2):
-        for bj in range(2):
-            for a in range(3):  # K block = R · Ia block
-                for b in range(3):
-                    K[3 * bi + a, 3 * bj + b] = (R[a, 0] * Ia[3 * bi, 3 * bj + b] + R[a, 1] * Ia[3 * bi + 1, 3 * bj + b]
-                                                 + R[a, 2] * Ia[3 * bi + 2, 3 * bj + b])
-            for a in range(3):  # J block = K block · Rᵀ
-                for b in range(3):
-                    J[3 * bi + a, 3 * bj + b] = (K[3 * bi + a, 3 * bj] * R[b, 0] + K[3 * bi + a, 3 * bj + 1] * R[b, 1]
-                                                 + K[3 * bi + a, 3 * bj + 2] * R[b, 2])
+    """out += Xᵀ Ia X for X = motion_act_inv(R, p): a symmetric 6×6 inertia moved to the parent frame,
+    on the LOWER triangle of out only (its upper triangle is left as is; Ia is read whole). By 3×3
+    blocks, Ia = [[A, Dᵀ], [D, C]] (A, C symmetric): rotated A' = R A Rᵀ, D' = R D Rᵀ, C' = R C Rᵀ
+    (the symmetric ones on one triangle), then with P = [p]× and E = A' P, F = D' P
+    Xᵀ Ia X = [[A', ·], [D' + P A', C' − F − Fᵀ − P E]], D' + P A' = D' − Eᵀ (J, K: 6×6 scratch)."""
+    for a in range(3):  # K = R · (A, D, C)
+        for b in range(3):
+            K[a, b] = R[a, 0] * Ia[0, b] + R[a, 1] * Ia[1, b] + R[a, 2] * Ia[2, b]
+            K[3 + a, b] = R[a, 0] * Ia[3, b] + R[a, 1] * Ia[4, b] + R[a, 2] * Ia[5, b]
+            K[3 + a, 3 + b] = R[a, 0] * Ia[3, 3 + b] + R[a, 1] * Ia[4, 3 + b] + R[a, 2] * Ia[5, 3 + b]
+    for a in range(3):  # J = K · Rᵀ: A', C' on their lower triangles (A' mirrored), D' whole
+        for b in range(3):
+            J[3 + a, b] = K[3 + a, 0] * R[b, 0] + K[3 + a, 1] * R[b, 1] + K[3 + a, 2] * R[b, 2]
+        for b in range(a + 1):
+            x = K[a, 0] * R[b, 0] + K[a, 1] * R[b, 1] + K[a, 2] * R[b, 2]
+            J[a, b] = x
+            J[b, a] = x
+            J[3 + a, 3 + b] = K[3 + a, 3] * R[b, 0] + K[3 + a, 4] * R[b, 1] + K[3 + a, 5] * R[b, 2]
     p0, p1, p2 = p[0], p[1], p[2]
     for a in range(3):  # row vectors times P: (x P) = (x1 p2 − x2 p1, x2 p0 − x0 p2, x0 p1 − x1 p0)
-        for blk in range(2):  # K[:3, :3] = A P, K[3:, 3:] = Bᵀ P
+        for blk in range(2):  # K[:3, :3] = E = A' P, K[3:, :3] = F = D' P
             x0, x1, x2 = J[3 * blk + a, 0], J[3 * blk + a, 1], J[3 * blk + a, 2]
-            K[3 * blk + a, 3 * blk] = x1 * p2 - x2 * p1
-            K[3 * blk + a, 3 * blk + 1] = x2 * p0 - x0 * p2
-            K[3 * blk + a, 3 * blk + 2] = x0 * p1 - x1 * p0
+            K[3 * blk + a, 0] = x1 * p2 - x2 * p1
+            K[3 * blk + a, 1] = x2 * p0 - x0 * p2
+            K[3 * blk + a, 2] = x0 * p1 - x1 * p0
     for a in range(3):
-        for b in range(3):
+        for b in range(a + 1):
             out[a, b] += J[a, b]
-            out[a, 3 + b] += J[a, 3 + b] - K[a, b]
+        for b in range(3):
             out[3 + b, a] += J[3 + b, a] - K[a, b]
     for b in range(3):
-        y0, y1, y2 = K[0, b], K[1, b], K[2, b]  # column b of A P; P y = p × y
+        y0, y1, y2 = K[0, b], K[1, b], K[2, b]  # column b of E; P y = p × y
         py = (p1 * y2 - p2 * y1, p2 * y0 - p0 * y2, p0 * y1 - p1 * y0)
-        for a in range(3):
-            out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, 3 + b] - K[3 + b, 3 + a] - py[a]
+        for a in range(b, 3):
+            out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, b] - K[3 + b, a] - py[a]
+
+
+@njit(**_HOT)
+def mirror_lower(M):
+    """Copy the lower triangle of the 6×6 M onto its upper triangle (M symmetric)."""
+    for a in range(6):
+        for b in range(a):
+            M[b, a] = M[a, b]
 
 
 @njit(**_HOT)
@@ -310,28 +327,29 @@ def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
 
 @njit(**_HOT)
 def _solve_spd6(A, b, L, out):
-    """out = A⁻¹ b for a symmetric positive definite 6×6 A (Cholesky; L is scratch)."""
+    """out = A⁻¹ b for a symmetric positive definite 6×6 A, read on its lower triangle (Cholesky
+    A = L Lᵀ; L is scratch and holds the inverse of its diagonal: 6 divisions, not 27)."""
     for j in range(6):
         d = A[j, j]
         for k in range(j):
             d -= L[j, k] * L[j, k]
-        d = math.sqrt(d)
-        L[j, j] = d
+        d_inv = 1.0 / math.sqrt(d)
+        L[j, j] = d_inv
         for i in range(j + 1, 6):
             x = A[i, j]
             for k in range(j):
                 x -= L[i, k] * L[j, k]
-            L[i, j] = x / d
+            L[i, j] = x * d_inv
     for i in range(6):
         x = b[i]
         for k in range(i):
             x -= L[i, k] * out[k]
-        out[i] = x / L[i, i]
+        out[i] = x * L[i, i]
     for i in range(5, -1, -1):
         x = out[i]
         for k in range(i + 1, 6):
             x -= L[k, i] * out[k]
-        out[i] = x / L[i, i]
+        out[i] = x * L[i, i]
 
 
 @njit(**_HOT)
@@ -343,51 +361,58 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
     right-hand side τ − nle − [root_f; 0] (zeros for a plain rigid tree). ``leaf_IA`` gives the
     constant parent-frame articulated inertia of symmetric leaves (``tree.flatten``; NaN: none)."""
     vel, c, IA, pA, U, D, u, acc6 = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7]
-    X, Ia, XtIa, tmp, pa, S = ws[10], ws[11], ws[12], ws[13], ws[14], ws[15]
+    X, Ia, XtIa, tmp, pa = ws[10], ws[11], ws[12], ws[13], ws[14]  # (ws[15] is no longer used)
     n = parent.shape[0]
     body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
     for i in range(n):
         for a in range(6):
             acc = 0.0
             for b in range(6):
-                IA[i, a, b] = inertia[i, a, b]
                 acc += inertia[i, a, b] * vel[i, b]
             tmp[a] = acc
+            for b in range(a + 1):  # IA: the lower triangle (symmetric)
+                IA[i, a, b] = inertia[i, a, b]
         force_cross(vel[i], tmp, pA[i])
         if kind[i] == FREE_FLYER:
             for a in range(6):
                 pA[i, a] += root_f[a]
-                for b in range(6):
+                for b in range(a + 1):
                     IA[i, a, b] += root_dI[a, b]
-        else:
-            _subspace(kind[i], axis[i], S)
+        else:  # c = v × S q̇, S q̇ = the axis times q̇ in the linear (prismatic) or angular rows
             qd = v[idx_v[i]]
-            for a in range(6):
-                pa[a] = S[a] * qd
-            motion_cross(vel[i], pa, c[i])
-    for i in range(n - 1, -1, -1):
+            w0, w1, w2 = axis[i, 0] * qd, axis[i, 1] * qd, axis[i, 2] * qd
+            v0, v1, v2, o0, o1, o2 = vel[i, 0], vel[i, 1], vel[i, 2], vel[i, 3], vel[i, 4], vel[i, 5]
+            if kind[i] == PRISMATIC:  # [ω × w; 0]
+                c[i, 0], c[i, 1], c[i, 2] = o1 * w2 - o2 * w1, o2 * w0 - o0 * w2, o0 * w1 - o1 * w0
+                c[i, 3], c[i, 4], c[i, 5] = 0.0, 0.0, 0.0
+            else:  # [v × w; ω × w]
+                c[i, 0], c[i, 1], c[i, 2] = v1 * w2 - v2 * w1, v2 * w0 - v0 * w2, v0 * w1 - v1 * w0
+                c[i, 3], c[i, 4], c[i, 5] = o1 * w2 - o2 * w1, o2 * w0 - o0 * w2, o0 * w1 - o1 * w0
+    for i in range(n - 1, -1, -1):  # the children add to the lower triangle of IA (symmetric) only
         if kind[i] == FREE_FLYER:
             continue
         iv = idx_v[i]
-        _subspace(kind[i], axis[i], S)
+        IAi = IA[i]
+        mirror_lower(IAi)
+        off = 0 if kind[i] == PRISMATIC else 3  # S = the unit axis in the linear or the angular rows
+        ax0, ax1, ax2 = axis[i, 0], axis[i, 1], axis[i, 2]
         for a in range(6):
-            acc = 0.0
-            for b in range(6):
-                acc += IA[i, a, b] * S[b]
-            U[i, a] = acc
-        d = armature[iv]
-        s_pa = 0.0
-        for a in range(6):
-            d += S[a] * U[i, a]
-            s_pa += S[a] * pA[i, a]
+            U[i, a] = IAi[a, off] * ax0 + IAi[a, off + 1] * ax1 + IAi[a, off + 2] * ax2
+        d = armature[iv] + ax0 * U[i, off] + ax1 * U[i, off + 1] + ax2 * U[i, off + 2]
         D[i] = d
-        u[i] = tau[iv] - s_pa
+        ui = tau[iv] - (ax0 * pA[i, off] + ax1 * pA[i, off + 1] + ax2 * pA[i, off + 2])
+        u[i] = ui
         pi = parent[i]
+        d_inv = 1.0 / d
+        for a in range(6):  # U D⁻¹ (Pinocchio's UDinv)
+            tmp[a] = U[i, a] * d_inv
         for a in range(6):
-            for b in range(6):
-                Ia[a, b] = IA[i, a, b] - U[i, a] * U[i, b] / d
+            for b in range(a + 1):
+                x = IAi[a, b] - tmp[a] * U[i, b]
+                Ia[a, b] = x
+                Ia[b, a] = x
         for a in range(6):
-            acc = pA[i, a] + U[i, a] * u[i] / d
+            acc = pA[i, a] + tmp[a] * ui
             for b in range(6):
                 acc += Ia[a, b] * c[i, b]
             pa[a] = acc
@@ -396,7 +421,7 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             add_inertia_to_parent(R_rel[i], p_rel[i], Ia, XtIa, X, IA[pi])
         else:
             for a in range(6):
-                for b in range(6):
+                for b in range(a + 1):
                     IA[pi, a, b] += leaf_IA[i, a, b]
         force_act(R_rel[i], p_rel[i], pa, tmp)
         for a in range(6):
@@ -413,14 +438,14 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
         motion_act_inv(R_rel[i], p_rel[i], acc6[parent[i]], acc6[i])
         for a in range(6):
             acc6[i, a] += c[i, a]
-        _subspace(kind[i], axis[i], S)
         ua = 0.0
         for a in range(6):
             ua += U[i, a] * acc6[i, a]
         qdd = (u[i] - ua) / D[i]
         vdot[iv] = qdd
-        for a in range(6):
-            acc6[i, a] += S[a] * qdd
+        off = 0 if kind[i] == PRISMATIC else 3
+        for a in range(3):
+            acc6[i, off + a] += axis[i, a] * qdd
 
 
 @njit(**_HOT)
@@ -489,7 +514,6 @@ def quat_exp_mul(q, w, out):
 def integrate(kind, axis, idx_q, idx_v, q, theta, out):
     """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
     n = kind.shape[0]
-    R = np.empty((3, 3))
     for i in range(n):
         iq, iv = idx_q[i], idx_v[i]
         k = kind[i]
@@ -515,9 +539,10 @@ def integrate(kind, axis, idx_q, idx_v, q, theta, out):
             l0 = px + a * c0 + b * d0
             l1 = py + a * c1 + b * d1
             l2 = pz + a * c2 + b * d2
-            quat_to_matrix(q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6], R)
-            for r in range(3):
-                out[iq + r] = q[iq + r] + R[r, 0] * l0 + R[r, 1] * l1 + R[r, 2] * l2
+            x, y, z, w = q[iq + 3], q[iq + 4], q[iq + 5], q[iq + 6]  # R l, R of quat_to_matrix
+            out[iq] = q[iq] + (1.0 - 2.0 * (y * y + z * z)) * l0 + 2.0 * (x * y - z * w) * l1 + 2.0 * (x * z + y * w) * l2
+            out[iq + 1] = q[iq + 1] + 2.0 * (x * y + z * w) * l0 + (1.0 - 2.0 * (x * x + z * z)) * l1 + 2.0 * (y * z - x * w) * l2
+            out[iq + 2] = q[iq + 2] + 2.0 * (x * z - y * w) * l0 + 2.0 * (y * z + x * w) * l1 + (1.0 - 2.0 * (x * x + y * y)) * l2
             quat_exp_mul(q[iq + 3:iq + 7], theta[iv + 3:iv + 6], out[iq + 3:iq + 7])
         elif k == REVOLUTE_UNBOUNDED:
             ca, sa = math.cos(theta[iv]), math.sin(theta[iv])
@@ -784,7 +809,8 @@ def mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M):
             for b in range(6):
                 Ic[i, a, b] = inertia[i, a, b]
     J, K = np.empty((6, 6)), np.empty((6, 6))
-    for i in range(n - 1, -1, -1):
+    for i in range(n - 1, -1, -1):  # the children add to the lower triangle of Ic (symmetric) only
+        mirror_lower(Ic[i])
         if parent[i] >= 0:
             add_inertia_to_parent(R_rel[i], p_rel[i], Ic[i], J, K, Ic[parent[i]])
     for a in range(nv):

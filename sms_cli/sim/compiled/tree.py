@@ -147,6 +147,7 @@ def _constant_leaf_inertias(parent, kind, axis, place_R, place_p, inertia, armat
             out[i] = 0.0
             add_inertia_to_parent(np.ascontiguousarray(place_R[i]), np.ascontiguousarray(place_p[i]), Ia,
                                   np.empty((6, 6)), np.empty((6, 6)), out[i])
+            out[i] = np.tril(out[i]) + np.tril(out[i], -1).T  # add_inertia_to_parent fills the lower triangle
     return out
 
 
