@@ -15,7 +15,7 @@ import numpy as np
 
 from sms_cli.recording.recorder import RecordingInterrupted
 from sms_cli.sim.attitude_math import attitude_error
-from sms_cli.sim.compiled.runner import CompiledSimulation, _Stop
+from sms_cli.sim.compiled.runner import CompiledSimulation, _Stop, raise_on_failure
 
 
 class NdiCompiledSimulation(CompiledSimulation):
@@ -96,7 +96,7 @@ class NdiCompiledSimulation(CompiledSimulation):
         return False
 
     def run(self):
-        from sms_cli.sim.compiled.loop import ARM_BLOCKS, NON_FINITE, RATE_LIMIT, SETTLED, STOP_FAILED
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS, SETTLED
         from sms_cli.sim.compiled.ndi_loop import MODAL_LIMIT, run_ticks_ndi
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.engine import build_result, phase_event
@@ -175,15 +175,7 @@ class NdiCompiledSimulation(CompiledSimulation):
                                                      st_etadot[:n_steps], st_tw[:n_steps], held(4), held(1), q_ref,
                                                      ev[:ev_n[0]])
                     self.progress.update(t)
-                    if code == NON_FINITE:
-                        raise _Stop("the state became non-finite")
-                    if code == RATE_LIMIT:
-                        vmax = float(np.max(np.abs(v)))
-                        raise _Stop(f"a generalized velocity reached {vmax:.4g} (limit {spec.divergence.max_rate:g})")
-                    if code == MODAL_LIMIT:
-                        raise _Stop(f"a modal amplitude exceeded {spec.divergence.max_modal_amplitude:g}")
-                    if code == STOP_FAILED:
-                        raise RuntimeError("joint stops: the complementarity pivoting did not terminate")
+                    raise_on_failure(code, v, spec, MODAL_LIMIT)
                     if code == SETTLED:
                         break
                     tick0 += ticks

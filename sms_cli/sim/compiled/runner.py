@@ -268,8 +268,7 @@ class CompiledSimulation:
 
     # ------------------------------------------------------------------ main loop
     def run(self):
-        from sms_cli.sim.compiled.loop import (ARM_BLOCKS, NON_FINITE, RATE_LIMIT, RUNNING, SETTLED, STOP_FAILED, X_N, X_REF,
-                                               run_ticks)
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS, RUNNING, SETTLED, X_N, X_REF, run_ticks
         from sms_cli.sim.compiled.momentum_control import locked_velocity
         from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
         from sms_cli.sim.compiled.stops import EV_COLS
@@ -418,13 +417,7 @@ class CompiledSimulation:
                                                np.repeat(piece["x"][:, X_REF:X_REF + 4], self.n_sub, axis=0)[:n_steps],
                                                wrench, hold(4), hold(1), ev[:ev_n[0]], held, extra or None, st_m)
                     self.progress.update(t)
-                    if code == NON_FINITE:
-                        raise _Stop("the state became non-finite")
-                    if code == RATE_LIMIT:
-                        vmax = float(np.max(np.abs(v)))
-                        raise _Stop(f"a generalized velocity reached {vmax:.4g} (limit {spec.divergence.max_rate:g})")
-                    if code == STOP_FAILED:
-                        raise RuntimeError("joint stops: the complementarity pivoting did not terminate")
+                    raise_on_failure(code, v, spec)
                     if code == SETTLED:
                         break
                     tick0 += ticks
@@ -616,3 +609,20 @@ class LyapunovSeries:
 
 class _Stop(Exception):
     """The compiled loop diverged (message = reason)."""
+
+
+def raise_on_failure(code: int, v: np.ndarray, spec: SimulationSpec, modal_limit: int | None = None) -> None:
+    """A slice's end code as the Python loop reports it: ``_Stop`` (the run diverged) for NON_FINITE,
+    RATE_LIMIT (v: the velocities at the last tick) and ``modal_limit`` (the NDI loop's MODAL_LIMIT);
+    RuntimeError for STOP_FAILED. Other codes (running, settled) pass."""
+    from sms_cli.sim.compiled.loop import NON_FINITE, RATE_LIMIT, STOP_FAILED
+
+    if code == NON_FINITE:
+        raise _Stop("the state became non-finite")
+    if code == RATE_LIMIT:
+        vmax = float(np.max(np.abs(v)))
+        raise _Stop(f"a generalized velocity reached {vmax:.4g} (limit {spec.divergence.max_rate:g})")
+    if modal_limit is not None and code == modal_limit:
+        raise _Stop(f"a modal amplitude exceeded {spec.divergence.max_modal_amplitude:g}")
+    if code == STOP_FAILED:
+        raise RuntimeError("joint stops: the complementarity pivoting did not terminate")
