@@ -1,0 +1,1 @@
+"""Several spacecraft in one study: passive (locked/shape) decomposition and the multi-body plant."""
