@@ -16,6 +16,7 @@ from sms_cli.mission.system import (
 from sms_cli.analysis.schema import AnalysisSpec
 from sms_cli.campaign.schema import CampaignSpec
 from sms_cli.check.schema import RequirementSpec
+from sms_cli.formation.schema import SERVICER, ClientSpec, FormationSpec
 from sms_cli.orbit.schema import BudgetSpec
 from sms_cli.sim.schema import SimulationSpec
 from sms_cli.synthesis.schema import SynthesisSpec
@@ -52,6 +53,12 @@ class Mission(StrictModel):
                                           "{name, metric: dotted path, max | min | equals (+ tol), unit, stage}")
     synthesis: SynthesisSpec | None = Field(
         None, description="controller/observer gain synthesis (sms synthesize): the LMI of Kraiem (2022), PD, LQR or SMC")
+    client: ClientSpec | None = Field(
+        None, description="a second spacecraft (the client, Vicariotto 2023 ch. 5): its URDF, wheels and pose in the "
+                          "servicer's base frame at t = 0")
+    formation: FormationSpec | None = Field(
+        None, description="two-spacecraft simulation (sms simulate, instead of simulation:): locked/shape decomposition, "
+                          "relative laws, pushes (Vicariotto 2023 §5.3-5.4); needs client:")
     campaign: CampaignSpec | None = Field(
         None, description="Monte-Carlo dispersions or a parameter sweep of this mission (sms campaign): designs, "
                           "dispersions at dotted paths, stages, timeout, retries, campaign requirements")
@@ -61,4 +68,15 @@ class Mission(StrictModel):
         unique([p.name for p in self.payloads], "payload", "payloads", "name")
         unique([a.name for a in self.appendages], "appendage", "appendages", "name")
         unique([s.joint for s in self.springs], "spring joint", "springs", "joint")
+        if self.formation is not None:
+            if self.client is None:
+                raise ValueError("formation: simulates two spacecraft: add a client: section (its robot and pose)")
+            if self.simulation is not None:
+                raise ValueError("a mission simulates one spacecraft (simulation:) or two (formation:), not both: "
+                                 "move one of them to another mission file")
+            names = (SERVICER, self.client.name)
+            for what, name in [("formation.master", self.formation.master)] + [
+                    (f"formation.pushes[{i}].body", p.body) for i, p in enumerate(self.formation.pushes)]:
+                if name not in names:
+                    raise ValueError(f"{what} is '{name}': the spacecraft are '{names[0]}' and '{names[1]}'")
         return self

@@ -79,6 +79,13 @@ def compile_summary(mission_path: Path, strict: bool = False) -> dict[str, Any]:
         from sms_cli.thrusters.capability import capability_report
 
         out["thrusters"] = capability_report(sm.thrusters)
+    if loaded.mission.client is not None:
+        from sms_cli.formation.stage import prepared
+        from sms_cli.formation.summary import pair_summary
+
+        _, client = prepared(loaded)
+        out["client"] = model_summary(client)
+        out["pair"] = pair_summary(loaded, sm, client)
     if moves:
         out["moves"] = moves
         out["auto_duration"] = loaded.mission.simulation.auto_duration.model_dump()
@@ -142,6 +149,13 @@ def format_summary(s: dict[str, Any]) -> str:
     if s.get("kinematics_only"):
         lines.append("model     KINEMATICS ONLY: placeholder inertias on " + ", ".join(s["kinematics_only"])
                      + " (dynamics stages refuse it)")
+    if s.get("pair"):
+        from sms_cli.formation.summary import format_pair
+
+        c = s["client"]
+        lines.append(f"client    {c['name']}: mass {c['total_mass_kg']:.4f} kg, DoF base {c['dof']['base']} · wheels "
+                     f"{c['dof']['wheels']} · arm {c['dof']['arm']}")
+        lines.extend(format_pair(s["pair"]))
     if s["warnings"]:
         lines.append(f"warnings  {len(s['warnings'])}:")
         lines.extend("  - " + w.replace("\n", "\n    ") for w in s["warnings"])

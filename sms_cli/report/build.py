@@ -162,7 +162,9 @@ def collect(folder: Path, mission: Path | None = None, unreadable: list[str] | N
     for key, build in (("budget", S.budget_section), ("analysis", S.analysis_section), ("synthesis", S.synthesis_section)):
         if isinstance(results.get(key), dict):
             sections.append(attempt(key, lambda: build(results[key], folder)))
-    if isinstance(results.get("simulate"), dict):
+    if isinstance(results.get("simulate"), dict) and isinstance(results["simulate"].get("formation"), dict):
+        sections.append(attempt("simulate", lambda: S.formation_section(results["simulate"], folder)))
+    elif isinstance(results.get("simulate"), dict):
         sim = results["simulate"]
         wheels = _dicts(section(results, "compile").get("wheels"))
         figures, notes = attempt("simulate", lambda: _simulation_figures(folder, sim, wheels)) or ([], [])

@@ -504,6 +504,60 @@ def simulation_section(sim: dict[str, Any], folder: Path, wheels: list[dict], ex
     return s
 
 
+FORMATION_CAPTIONS = {
+    "formation_shape_error.png": "Relative (shape) error: the other spacecraft's base position (cm) and rotation angle "
+                                 "(deg) in the master's frame against the setpoint; dashed lines mark the pushes.",
+    "formation_twists.png": "Locked (total) twist V_L and shape (relative) twist V_E of the passive decomposition "
+                            "(Vicariotto 2023 (5.5)): the locked system keeps its motion while the shape is controlled.",
+    "formation_momentum.png": "Total momentum of the pair in the world frame: constant between pushes when only "
+                              "internal wrenches act; each push changes it by its impulse.",
+    "formation_energy.png": "Kinetic energy split T = ½V_LᵀM_LV_L + ½V_EᵀM_EV_E + wheels, and the law's Lyapunov "
+                            "function W, which must not increase between pushes.",
+}
+
+
+def formation_section(sim: dict[str, Any], folder: Path) -> Section:
+    """The two-spacecraft simulation: relative and locked motion, momentum, pushes, energy, timing."""
+    f = sim["formation"]
+    s = Section("simulation", "Two-spacecraft simulation (locked/shape decomposition)")
+    s.intro = (f"status: {sim.get('status')}; {fmt(sim.get('t_end_s'))} s simulated in {fmt(sim.get('steps'))} steps; "
+               f"master (body 1): {f.get('master')}, other: {f.get('other')}; law {sim.get('law')}, "
+               f"shape effort applied by: {sim.get('actuation')}")
+    sh, lk, cons = sim.get("shape", {}), sim.get("locked", {}), sim.get("conservation", {})
+    s.add(Table("Relative (shape) and locked motion", ["quantity", "value", "unit"], [
+        ["shape position error, initial", fmt(sh.get("position_error_initial_m")), "m"],
+        ["shape position error, final", fmt(sh.get("position_error_final_m")), "m"],
+        ["shape angle error, initial", fmt(sh.get("angle_error_initial_deg")), "deg"],
+        ["shape angle error, final", fmt(sh.get("angle_error_final_deg")), "deg"],
+        ["shape settling time", fmt(sh.get("settling_time_s")), "s"],
+        ["locked angular rate, initial", fmt(lk.get("angular_rate_initial_rad_s")), "rad/s"],
+        ["locked angular rate, final", fmt(lk.get("angular_rate_final_rad_s")), "rad/s"],
+        ["locked kinetic energy, initial / final", f"{fmt(lk.get('kinetic_energy_initial_J'))} / "
+                                                   f"{fmt(lk.get('kinetic_energy_final_J'))}", "J"],
+        ["shape kinetic energy, initial / final", f"{fmt(sh.get('kinetic_energy_initial_J'))} / "
+                                                  f"{fmt(sh.get('kinetic_energy_final_J'))}", "J"],
+    ], [False, True, False]))
+    s.add(Table("Momentum of the pair (world frame)", ["quantity", "value", "unit"], [
+        ["linear momentum drift between pushes", fmt(cons.get("linear_momentum_drift_between_pushes_Ns")), "N s"],
+        ["angular momentum drift between pushes", fmt(cons.get("angular_momentum_drift_between_pushes_Nms")), "N m s"],
+        ["relative drifts (linear, angular)", f"{fmt(cons.get('linear_momentum_drift_between_pushes_rel'))}, "
+                                              f"{fmt(cons.get('angular_momentum_drift_between_pushes_rel'))}", "–"],
+    ], [False, True, False]))
+    pushes = sim.get("pushes") or []
+    if pushes:
+        s.add(Table("Pushes", ["body", "at [s]", "duration [s]", "force [N]", "momentum change [N s, N m s]"],
+                    [[p["body"], fmt(p["at_s"]), fmt(p["duration_s"]), ", ".join(fmt(x) for x in p["force_N"]),
+                      ", ".join(fmt(x, 3) for x in p["momentum_change"]) if p.get("momentum_change") else "—"]
+                     for p in pushes], [False, True, True, False, False]))
+    tm = sim.get("timing", {})
+    if tm:
+        s.notes.append(f"{fmt(tm.get('us_per_step'))} µs per plant step with recording, "
+                       f"{fmt(tm.get('real_time_factor'))}× real time ({fmt(tm.get('steps'))} steps)")
+    for name in _pngs(sim.get("files", {}).get("plots", [])):
+        s.add(figure_from_file(folder, name, FORMATION_CAPTIONS.get(name, _caption_from_name(name))))
+    return s
+
+
 # ----------------------------------------------------------------- requirements and provenance
 
 

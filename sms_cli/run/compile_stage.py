@@ -20,6 +20,13 @@ def run_compile(loaded, out: Path) -> dict[str, Any]:
         from sms_cli.thrusters.capability import capability_report
 
         summary["thrusters"] = _jsonable(capability_report(sm.thrusters))
+    if loaded.mission.client is not None:
+        from sms_cli.formation.stage import prepared
+        from sms_cli.formation.summary import pair_summary
+
+        _, client = prepared(loaded)
+        summary["client"] = _jsonable(model_summary(client))
+        summary["pair"] = _jsonable(pair_summary(loaded, sm, client))
     rd = ResultsDir(out)
     draw_robot(sm, rd.file("robot.png"))
     summary["artifacts"] = ["robot.png"]

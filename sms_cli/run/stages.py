@@ -24,9 +24,10 @@ class Stage:
     module: str
     function: str
     needs: tuple[str, ...]    # stages whose failure makes this one pointless
+    also: tuple[str, ...] = ()  # other Mission attributes that configure it (simulate: formation)
 
     def configured(self, mission: Any) -> bool:
-        return getattr(mission, self.mission_key, None) is not None
+        return any(getattr(mission, key, None) is not None for key in (self.mission_key, *self.also))
 
     def load(self) -> Callable[..., Any]:
         """The stage's entry point; InputError when the stage module is not installed."""
@@ -49,7 +50,7 @@ STAGES: list[Stage] = [
     Stage("budget", "budget", "budget", "sms_cli.orbit.stage", "run_budget", ()),
     Stage("analyze", "analysis", "analysis", "sms_cli.analysis.stage", "run_analysis", ("compile",)),
     Stage("synthesize", "synthesis", "synthesis", "sms_cli.synthesis.stage", "run_synthesis", ("compile",)),
-    Stage("simulate", "simulate", "simulation", "sms_cli.sim.stage", "run_simulation", ("compile",)),
+    Stage("simulate", "simulate", "simulation", "sms_cli.sim.stage", "run_simulation", ("compile",), ("formation",)),
 ]
 
 

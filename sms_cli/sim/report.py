@@ -18,7 +18,9 @@ def _stop_line(p: dict) -> str:
 
 
 def format_simulation(sec: dict) -> str:
-    """Per-phase table and overall metrics."""
+    """Per-phase table and overall metrics (a two-spacecraft run: ``format_formation``)."""
+    if "formation" in sec:
+        return format_formation(sec)
     lines = [f"status {sec['status']}" + (f" ({sec['divergence']})" if sec.get("divergence") else "")
              + f"  t_end {sec['t_end_s']:.3f} s, {sec['steps']} plant steps"]
     tm = sec.get("timing", {})
@@ -56,4 +58,22 @@ def format_simulation(sec: dict) -> str:
                      f" (rel {_f(c.get('linear_momentum_drift_rel'), '.2e')}), angular {_f(c.get('angular_momentum_drift_abs'), '.2e')} N m s"
                      f" (rel {_f(c.get('angular_momentum_drift_rel'), '.2e')}); energy change {_f(c.get('energy_change_J'), '.4g')} J")
     lines.append(f"recording {sec['files']['mcap']}")
+    return "\n".join(lines)
+
+
+def format_formation(sec: dict) -> str:
+    """A two-spacecraft run: shape and locked motion, momentum, timing."""
+    f, sh, lk, c, tm = sec["formation"], sec["shape"], sec["locked"], sec["conservation"], sec.get("timing", {})
+    lines = [f"status {sec['status']}" + (f" ({sec['divergence']})" if sec.get("divergence") else "")
+             + f"  t_end {sec['t_end_s']:.3f} s, {sec['steps']} plant steps; master {f['master']}, other {f['other']}",
+             f"shape error   {sh['position_error_initial_m']:.4g} m, {sh['angle_error_initial_deg']:.3g}° -> "
+             f"{sh['position_error_final_m']:.3g} m, {sh['angle_error_final_deg']:.3g}°"
+             f"  (settled at {_f(sh.get('settling_time_s'), '.1f')} s)",
+             f"locked rate   {lk['angular_rate_initial_rad_s']:.4g} -> {lk['angular_rate_final_rad_s']:.4g} rad/s",
+             f"momentum drift between pushes: {c['linear_momentum_drift_between_pushes_Ns']:.3g} N s, "
+             f"{c['angular_momentum_drift_between_pushes_Nms']:.3g} N m s"]
+    if tm:
+        lines.append(f"timing {tm['wall_s']:.2f} s wall, {tm['us_per_step']:.1f} µs/step, "
+                     f"{_f(tm.get('real_time_factor'), '.1f')}× real time")
+    lines.append(f"files: {', '.join(str(v) for k, v in sec.get('files', {}).items() if k != 'plots')}")
     return "\n".join(lines)

@@ -106,7 +106,11 @@ def _diverged_message(result: SimResult, kept: str) -> str:
 def run_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | None = None,
                    progress: bool | None = None) -> dict:
     """Simulate the mission; returns the ``simulate`` section written to results.json (see
-    ``record_simulation``)."""
+    ``record_simulation``; a two-spacecraft mission: ``sms_cli.formation.stage.record_formation``)."""
+    if loaded.mission.formation is not None:
+        from sms_cli.formation.stage import record_formation
+
+        return record_formation(loaded, out_dir, mcap_path, progress)
     return record_simulation(loaded, out_dir, mcap_path, progress)[0]
 
 

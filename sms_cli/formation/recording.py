@@ -1,0 +1,69 @@
+"""The numeric MCAP topics of a two-spacecraft sample (``FormationSimulation._sample``'s dict).
+
+Frames and units: locked twist and momentum in the master's base frame, shape twist and momentum in the other
+body's base frame (Vicariotto 2023 L936), total momentum in the world frame about its origin; SI units, angles
+in degrees where a field says ``_deg``. Body topics are under ``/<name>/`` (``/client/wheels/speed``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_TWIST = ("vx", "vy", "vz", "wx", "wy", "wz")
+_WRENCH = ("fx", "fy", "fz", "nx", "ny", "nz")
+_MOMENTUM = ("px", "py", "pz", "kx", "ky", "kz")
+
+
+def _fields(names, x) -> dict:
+    return {n: float(x[i]) for i, n in enumerate(names)}
+
+
+def formation_topics(names: tuple[str, str], s: dict) -> dict[str, dict]:
+    """topic → {field: value} of one sample ``s``; ``names`` = (master, other)."""
+    out = {
+        "/locked/twist": _fields(_TWIST, s["V_L"]),
+        "/shape/twist": _fields(_TWIST, s["V_E"]),
+        "/momentum/total": _fields(_MOMENTUM, s["H_world"]),
+        "/momentum/locked": _fields(_MOMENTUM, s["H_locked"]),
+        "/momentum/relative": _fields(_MOMENTUM, s["H_shape"]),
+        "/energy": {"locked": float(s["T_L"]), "shape": float(s["T_E"]), "wheels": float(s["T"] - s["T_L"] - s["T_E"]),
+                    "total": float(s["T"]), "lyapunov": float(s["W"])},
+        "/shape/error": {"x": float(s["shape_position"][0]), "y": float(s["shape_position"][1]),
+                         "z": float(s["shape_position"][2]), "angle_deg": float(np.degrees(s["shape_angle"]))},
+        "/locked/wrench": _fields(_WRENCH, s["F_L"]),
+        "/shape/wrench": _fields(_WRENCH, s["F_E"]),
+    }
+    for i, name in enumerate(names):
+        k = str(i + 1)
+        out[f"/{name}/twist"] = _fields(_TWIST, s["V" + k])
+        out[f"/{name}/position"] = _fields(("x", "y", "z"), s["p" + k])
+        out[f"/{name}/wrench"] = _fields(_WRENCH, s["F" + k])
+        if len(s["wheels" + k]):
+            out[f"/{name}/wheels/speed"] = {"rate": np.asarray(s["wheels" + k], float)}
+            out[f"/{name}/wheels/torque"] = {"torque": np.asarray(s["tau_w" + k], float)}
+    return out
+
+
+class RecordedLinks:
+    """The links of both spacecraft as the recording's transform tree: names ``<spacecraft>/<link>`` (as in
+    ``sms_cli.formation.urdf_pair``), each one's parent link (the bases' is ``world``), and their world poses."""
+
+    def __init__(self, plant):
+        from sms_cli.formation.urdf_pair import prefixed
+
+        self.plant = plant
+        self.names, self.parents, self.frame_ids = [], [], []
+        for body in plant.bodies:
+            sm = body.system
+            for link, parent in sm.link_parents.items():
+                self.names.append(prefixed(link, body.name))
+                self.parents.append("world" if parent == "world" else prefixed(parent, body.name))
+                self.frame_ids.append(body.frames[sm.model.frames[sm.link_frames[link]].name])
+        self._data = plant.model.createData()
+
+    def world_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n_links, 7) world poses [x y z qx qy qz qw]."""
+        import pinocchio as pin
+
+        pin.framesForwardKinematics(self.plant.model, self._data, q)
+        return np.array([pin.SE3ToXYZQUAT(self._data.oMf[f]) for f in self.frame_ids])

@@ -1,0 +1,208 @@
+"""The two-spacecraft simulation loop: sense (locked/shape state) → relative law (ZOH at the control rate)
+→ pushes → plant step (RKMK4 of both free-flyers) → trace and recording.
+
+Time: the plant advances by ``dt``; the law runs every ``control_period / dt`` steps; a push acts over the
+plant steps whose start lies in [at, at + duration). Samples (trace, MCAP, relative_motion.csv) are taken at
+t = 0 and every ``1 / record_rate``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from sms_cli.formation.decomposition import decompose
+from sms_cli.formation.laws import BodyState, RelativeLaw
+from sms_cli.formation.schema import SERVICER
+
+
+@dataclass
+class FormationResult:
+    """What a run produced: status (completed | diverged | interrupted), time reached, steps, the sampled
+    trace (arrays with a leading time axis) and the wall time of the loop (s)."""
+
+    status: str
+    t_end: float
+    steps: int
+    trace: dict[str, np.ndarray]
+    wall_s: float
+    divergence: str = ""
+    pushes: list[dict] = field(default_factory=list)
+
+
+def _pose(p) -> pin.SE3:
+    return pin.SE3(pin.rpy.rpyToMatrix(*map(float, p.attitude)), np.asarray(p.position, float))
+
+
+class FormationSimulation:
+    """Simulates a mission's ``formation:`` section. ``servicer`` and ``client`` are the two SystemModels;
+    body 1 (the master) is the one ``formation.master`` names."""
+
+    def __init__(self, mission, servicer, client, recorder=None, progress: bool | None = None):
+        from sms_cli.formation.plant import TwoBodyPlant
+
+        self.spec = spec = mission.formation
+        names = (SERVICER, mission.client.name)
+        models = {SERVICER: servicer, mission.client.name: client}
+        self.names = (spec.master, names[1] if spec.master == names[0] else names[0])
+        self.plant = TwoBodyPlant.build(models[self.names[0]], models[self.names[1]], names=self.names)
+        self.recorder = recorder
+        from sms_cli.formation.recording import RecordedLinks
+
+        self.links = RecordedLinks(self.plant)
+        self.progress = sys.stderr.isatty() if progress is None else progress
+        # poses at t = 0: the servicer's base from the mission's initial state, the client's relative to it
+        ini = mission.initial
+        g_servicer = pin.SE3(pin.rpy.rpyToMatrix(*map(float, ini.base_attitude)), np.asarray(ini.base_position, float))
+        g_client = g_servicer * _pose(mission.client.pose)
+        poses = {SERVICER: g_servicer, mission.client.name: g_client}
+        self.g0 = (poses[self.names[0]], poses[self.names[1]])
+        self.wheel_limits = [np.array([w.max_torque for w in b.system.wheels], float) for b in self.plant.bodies]
+        self.q, self.v = self._initial_state()
+        self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]))
+
+    # ---------------------------------------------------------------- state
+    def _initial_state(self):
+        """q, v with the wheels at their initial speeds and the bases moving so that the locked and shape twists
+        are ``formation.initial``'s."""
+        p = self.plant
+        q, v = p.initial_state(self.g0[0], np.zeros(6), self.g0[1], np.zeros(6))
+        dec, _, _ = p.decomposition(q, v)
+        ini = self.spec.initial
+        V_L = np.concatenate([np.asarray(ini.locked.linear, float), np.asarray(ini.locked.angular, float)])
+        V_E = np.concatenate([np.asarray(ini.shape.linear, float), np.asarray(ini.shape.angular, float)])
+        xi = dec.body_twists(V_L, V_E)
+        for i in range(2):
+            body = p.bodies[i]
+            connection, _ = self._connection(q, i)
+            v[body.base_v] = xi[i] - connection @ v[body.joints_v]  # V_i = ξ_i − Λ_i θ̇_i
+        return q, v
+
+    def _connection(self, q, i):
+        """Λ_i = M_bb⁻¹ M_bθ (6 × internal joints of body i) and the wheels' shape inertia (Schur complement)."""
+        p = self.plant
+        M = p.mass_matrix(q)
+        b, w = p.bodies[i].base_v, p.bodies[i].joints_v
+        Mbw = M[b, w]
+        Lam = np.linalg.solve(M[b, b], Mbw)
+        return Lam, M[w, w] - Mbw.T @ Lam
+
+    def body_states(self, q, v):
+        """(PairDecomposition, BodyState of body 1, of body 2) on the wheels (arm joints, if any, are held)."""
+        p = self.plant
+        dec, xi1, xi2 = p.decomposition(q, v)
+        out = []
+        for i, xi in enumerate((xi1, xi2)):
+            body = p.bodies[i]
+            Lam, Mth = self._connection(q, i)
+            wsel = body.wheels_v - body.joints_v.start  # the wheels among the body's joints
+            out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
+                                 Mth[np.ix_(wsel, wsel)]))
+        return dec, out[0], out[1]
+
+    @property
+    def internal_pair(self) -> bool:
+        """The shape wrench is an internal pair (F_L = 0): free-flying law, locked system free, both bodies acting."""
+        return self.law.free_flying and not self.law.locked.controlled and self.spec.actuation == "both"
+
+    def _reaction(self, F2: np.ndarray):
+        """interface(q, v) for the plant step: on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose, so
+        that the pair stays equal and opposite (total momentum conserved) while the bodies turn."""
+        p = self.plant
+        frame = p.bodies[0].base_frame_id
+
+        def reaction(qs, _vs):
+            g12 = p.base_pose(qs, 0).actInv(p.base_pose(qs, 1))
+            return [(frame, -(g12.dualAction @ F2))]
+
+        return reaction
+
+    # ---------------------------------------------------------------- pushes
+    def _push_wrenches(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The push wrenches on body 1 and body 2 (base frames, [f; p × f]) acting over the step starting at t."""
+        F = [np.zeros(6), np.zeros(6)]
+        for push in self.spec.pushes:
+            if push.at - 1e-9 <= t < push.at + push.duration - 1e-9:
+                f = np.asarray(push.force, float)
+                F[self.names.index(push.body)] += np.concatenate([f, np.cross(np.asarray(push.point, float), f)])
+        return F[0], F[1]
+
+    # ---------------------------------------------------------------- loop
+    def run(self) -> FormationResult:
+        spec, p = self.spec, self.plant
+        dt = float(spec.dt)
+        n_steps = int(round(spec.duration / dt))
+        per_control = int(round((1.0 / spec.control_rate) / dt))
+        per_sample = max(1, int(round((1.0 / spec.record_rate) / dt)))
+        q, v = self.q, self.v
+        rows: dict[str, list] = {}
+        tau = np.zeros(p.model.nv)
+        cmd = None
+        status, divergence, k = "completed", "", 0
+        wall0 = time.perf_counter()
+        try:
+            for k in range(n_steps + 1):
+                t = k * dt
+                if k % per_control == 0 or cmd is None:
+                    dec, b1, b2 = self.body_states(q, v)
+                    cmd = self.law(dec, b1, b2)
+                    tau[:] = 0.0
+                    tau[p.bodies[0].wheels_v] = cmd.tau_w1
+                    tau[p.bodies[1].wheels_v] = cmd.tau_w2
+                if k % per_sample == 0 or k == n_steps:
+                    self._sample(rows, t, q, v, cmd)
+                if k == n_steps:
+                    break
+                P1, P2 = self._push_wrenches(t)
+                if self.internal_pair:  # F2 held in frame 2, its reaction on body 1 follows the relative pose
+                    q, v = p.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._reaction(cmd.F2))
+                else:
+                    q, v = p.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2))
+                if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+                    status, divergence = "diverged", "the state is no longer finite"
+                    break
+                if self.progress and k % 500 == 0:
+                    print(f"\r  simulating: t = {t:8.2f} s of {spec.duration:g} s", end="", file=sys.stderr, flush=True)
+        except KeyboardInterrupt:
+            status = "interrupted"
+        if self.progress:
+            print(file=sys.stderr, flush=True)
+        wall = time.perf_counter() - wall0
+        trace = {key: np.asarray(val) for key, val in rows.items()}
+        t_end = float(trace["t"][-1]) if "t" in trace else 0.0
+        return FormationResult(status, t_end, k, trace, wall, divergence)
+
+    def _sample(self, rows: dict, t: float, q, v, cmd) -> None:
+        """Append one sample to the trace and, with a recorder, to the MCAP file."""
+        p = self.plant
+        dec, b1, b2 = self.body_states(q, v)
+        V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
+        T_L, T_E = dec.energies(V_L, V_E)
+        g1, g2 = b1.pose, b2.pose
+        H_world = p.momentum_world(q, v)
+        sample = {
+            "t": t, "p1": g1.translation.copy(), "q1": pin.Quaternion(g1.rotation).coeffs().copy(),
+            "p2": g2.translation.copy(), "q2": pin.Quaternion(g2.rotation).coeffs().copy(),
+            "V1": p.base_twist(v, 0), "V2": p.base_twist(v, 1), "V_L": V_L, "V_E": V_E,
+            "H_world": H_world, "H_locked": dec.M_L @ V_L, "H_shape": dec.M_E @ V_E,
+            "T_L": T_L, "T_E": T_E, "T": p.kinetic_energy(q, v), "W": cmd.lyapunov,
+            "shape_position": cmd.shape_error.position if cmd.shape_error else np.full(3, np.nan),
+            "shape_angle": cmd.shape_error.angle if cmd.shape_error else math.nan,
+            "locked_position": cmd.locked_error.position if cmd.locked_error else np.full(3, np.nan),
+            "locked_angle": cmd.locked_error.angle if cmd.locked_error else math.nan,
+            "F1": cmd.F1, "F2": cmd.F2, "F_L": cmd.F_L, "F_E": cmd.F_E,
+            "wheels1": b1.wheel_rates, "wheels2": b2.wheel_rates, "tau_w1": cmd.tau_w1, "tau_w2": cmd.tau_w2,
+            "saturated": cmd.saturated,
+        }
+        for key, val in sample.items():
+            rows.setdefault(key, []).append(val)
+        if self.recorder is not None:
+            from sms_cli.formation.recording import formation_topics
+
+            self.recorder.write_step(t, transforms=self.links.world_poses(q), scalars=formation_topics(self.names, sample),
+                                     force=True)

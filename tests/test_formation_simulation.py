@@ -1,0 +1,171 @@
+"""Two-spacecraft missions (Vicariotto 2023 ch. 5) end to end: the relative law's Lyapunov identity, momentum
+through internal wrenches, the shipped S4/S6 missions through the CLI, and bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sms_cli.cli import app
+from sms_cli.mission.load import load_mission, load_mission_text
+
+ROOT = Path(__file__).resolve().parents[1]
+S6 = ROOT / "missions" / "vicariotto_s6_relative_hil.yaml"
+S4 = ROOT / "missions" / "vicariotto_s4_relative_free_flying.yaml"
+runner = CliRunner()
+
+
+def _variant(base: Path, extra: str, tmp_path: Path):
+    """A mission extending ``base`` with ``extra`` YAML (written next to the shipped missions' folder)."""
+    text = f"extends: {base}\n{extra}"
+    return load_mission_text(text, base_dir=base.parent, name=f"variant_{tmp_path.name}.yaml")
+
+
+def _simulation(loaded):
+    from sms_cli.formation.simulate import FormationSimulation
+    from sms_cli.formation.stage import prepared
+
+    servicer, client = prepared(loaded)
+    return FormationSimulation(loaded.mission, servicer, client, None, progress=False)
+
+
+def _W_rate_identity(sim, q, v):
+    """(dW/dt by a central difference of the plant under the law's inputs at (q, v), the law's closed form
+    −V_LᵀK_LV_L − V_EᵀK_EV_E − K_w|θ̇|²)."""
+    p = sim.plant
+    dec, b1, b2 = sim.body_states(q, v)
+    cmd = sim.law(dec, b1, b2)
+    assert not cmd.saturated
+    tau = np.zeros(p.model.nv)
+    tau[p.bodies[0].wheels_v] = cmd.tau_w1
+    tau[p.bodies[1].wheels_v] = cmd.tau_w2
+    h = 1e-3
+    Ws = []
+    for dt in (h, -h):
+        qn, vn = p.step(q, v, dt, tau, (cmd.F1, cmd.F2))
+        d, c1, c2 = sim.body_states(qn, vn)
+        Ws.append(sim.law(d, c1, c2).lyapunov)
+    V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
+    law = sim.law
+    predicted = (-(V_L @ (law.locked.kd * V_L) if law.locked.controlled else 0.0)
+                 - (V_E @ (law.shape.kd * V_E) if law.shape.controlled else 0.0)
+                 - law.wheel_damping * (b1.wheel_rates @ b1.wheel_rates + b2.wheel_rates @ b2.wheel_rates))
+    return (Ws[0] - Ws[1]) / (2 * h), predicted
+
+
+def _perturbed_state(sim, seed: int):
+    import pinocchio as pin
+
+    rng = np.random.default_rng(seed)
+    q = pin.integrate(sim.plant.model, sim.q, 0.05 * rng.standard_normal(sim.v.size))  # off both setpoints
+    v = sim.v.copy()
+    v += 0.01 * rng.standard_normal(v.size)
+    for b in sim.plant.bodies:
+        v[b.wheels_v] = 20.0 * rng.standard_normal(len(b.wheels_v))  # wheels spinning: Λθ̇ terms matter
+    return q, v
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_lyapunov_rate_equals_the_dissipation_of_the_free_flying_law(seed):
+    """Ẇ = −V_LᵀK_LV_L − V_EᵀK_EV_E − K_w|θ̇|² exactly (both subsystems controlled, wheels spinning): W is the
+    kinetic energy of the pair plus both potentials, so this checks the law's every term against the dynamics."""
+    sim = _simulation(load_mission(S4))
+    sim.law.wheel_damping = 1e-3
+    q, v = _perturbed_state(sim, seed)
+    measured, predicted = _W_rate_identity(sim, q, v)
+    assert predicted < 0
+    assert measured == pytest.approx(predicted, rel=1e-5, abs=1e-12)
+
+
+def test_kinetic_energy_split_equals_the_plant_energy():
+    """T = ½V_LᵀM_LV_L + ½V_EᵀM_EV_E + Σ½θ̇ᵀM_θθ̇ (Vicariotto 2023 §5.3) equals Pinocchio's kinetic energy."""
+    sim = _simulation(load_mission(S4))
+    q, v = _perturbed_state(sim, 5)
+    dec, b1, b2 = sim.body_states(q, v)
+    T_L, T_E = dec.energies(*dec.locked_shape(b1.xi, b2.xi))
+    T_w = sum(0.5 * b.wheel_rates @ b.wheel_inertia @ b.wheel_rates for b in (b1, b2))
+    assert T_L + T_E + T_w == pytest.approx(sim.plant.kinetic_energy(q, v), rel=1e-12)
+
+
+def test_initial_state_has_the_requested_locked_and_shape_twists():
+    sim = _simulation(load_mission(S6))
+    dec, b1, b2 = sim.body_states(sim.q, sim.v)
+    V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
+    assert np.allclose(V_L, [0, 0, 0, 0, 0.02, 0], atol=1e-14)
+    assert np.allclose(V_E, [0.01, 0, 0, 0, 0.02, 0], atol=1e-14)
+
+
+def test_internal_shape_pair_conserves_total_momentum(tmp_path):
+    """Only the shape pair and the wheels act (actuation: both, no pushes): total momentum to 1e-9 relative."""
+    loaded = _variant(S6, "formation: {duration: 40 s, pushes: []}\n", tmp_path)
+    result = _simulation(loaded).run()
+    H = result.trace["H_world"]
+    assert np.max(np.abs(H - H[0])) <= 1e-9 * np.max(np.abs(H))
+    assert np.max(np.abs(result.trace["F_E"])) > 0.01  # the law did act
+
+
+def test_one_sided_actuation_moves_the_locked_system(tmp_path):
+    """actuation: other puts the whole shape wrench on one spacecraft: its wrench is then external to the pair."""
+    loaded = _variant(S6, "formation: {duration: 20 s, pushes: [], actuation: other}\n", tmp_path)
+    result = _simulation(loaded).run()
+    assert np.max(np.abs(result.trace["F1"])) == 0.0
+    H = result.trace["H_world"]
+    assert np.max(np.abs(H - H[0])) > 1e-4 * np.max(np.abs(H))
+
+
+def test_s6_through_the_cli(tmp_path):
+    out = tmp_path / "s6"
+    r = runner.invoke(app, ["run", str(S6), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    res = json.loads((out / "results.json").read_text())
+    sim = res["simulate"]
+    assert sim["formation"] == {"master": "client", "other": "servicer", "relative_motion": "relative_motion.csv"}
+    assert sim["shape"]["position_error_final_m"] < 0.02 and sim["shape"]["angle_error_final_deg"] < 1.0
+    assert (out / "relative_motion.csv").read_text().splitlines()[0].startswith("t,p1_x,p1_y,p1_z,q1_x")
+    assert "pair" in res["compile"] and res["compile"]["client"]["total_mass_kg"] == pytest.approx(300.0)
+    html = (out / "report.html").read_text()
+    assert "Two-spacecraft simulation" in html and "Relative (shape) error" in html
+    from mcap.reader import make_reader
+
+    with open(out / "simulation.mcap", "rb") as f:
+        reader = make_reader(f)
+        topics = {c.topic for c in reader.get_summary().channels.values()}
+        robot = next(m for _, _, m in reader.iter_messages(topics=["/robot_description"]))
+    assert {"/tf", "/locked/twist", "/shape/twist", "/momentum/total", "/momentum/relative", "/energy"} <= topics
+    assert b"client/bus" in robot.data and b"servicer/bus" in robot.data
+
+
+def test_compile_summarises_both_spacecraft():
+    r = runner.invoke(app, ["compile", str(S6)])
+    assert r.exit_code == 0, r.output
+    assert "mass 300.0000 kg, DoF base 6 · wheels 3" in r.output and "bases 3 m apart" in r.output
+    assert "shape inertia M_E diagonal" in r.output
+
+
+BAD = {
+    "missing client URDF": ("client: {robot: {urdf: ../robots/nope.urdf}}\n", "nope.urdf: no such file"),
+    "overlapping bodies": ("client: {pose: {position: [1.0, 0, 0]}}\n", "overlap"),
+    "unknown master": ("formation: {master: chaser}\n", "formation.master"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_two_spacecraft_input_is_exit_2_with_its_line(case, tmp_path):
+    extra, needle = BAD[case]
+    path = tmp_path / "bad.yaml"
+    path.write_text(f"extends: {S6}\n{extra}")
+    r = runner.invoke(app, ["simulate", str(path), "-o", str(tmp_path / "out")])
+    assert r.exit_code == 2, r.output
+    assert needle in r.output and "bad.yaml:" in r.output.replace("\n", "")
+    assert "Traceback" not in r.output
+
+
+def test_formation_without_client_is_refused(tmp_path):
+    path = tmp_path / "noclient.yaml"
+    path.write_text("name: x\nrobot: {urdf: %s}\nformation: {duration: 1 s}\n" % (ROOT / "robots" / "vicariotto_servicer.urdf"))
+    r = runner.invoke(app, ["simulate", str(path), "-o", str(tmp_path / "out")])
+    assert r.exit_code == 2 and "client" in r.output
