@@ -440,7 +440,7 @@ def test_bad_results_folder_is_exit_2(tmp_path, damage, where, words):
         lines[2] = ",".join(f)
     elif damage == "time":
         f = lines[3].split(",")
-        f[0] = "0.0"
+        f[0] = lines[2].split(",")[0]  # a repeated time
         lines[3] = ",".join(f)
     if table.exists():
         table.write_text("\n".join(lines) + "\n")
@@ -471,3 +471,40 @@ def test_help_documents_the_command_and_its_example():
                   "sms export hil results/formation --facility missions/facilities/oos_sim.yaml"):
         assert words in " ".join(r.stdout.split()), words
     assert FACILITY.exists()
+
+
+def test_absolute_replay_is_the_motion_from_the_mount():
+    """A(t) = mount · g1(0)⁻¹ g1(t), by Pinocchio, for a body that translates and rotates."""
+    from sms_cli.hil.workspace import absolute_replay
+
+    moving = Analytic(V1=[0.05, -0.02, 0.01, 0.0, SPIN, 0.01], xi=np.zeros(6))
+    ts = np.linspace(0.0, 50.0, 26)
+    _, g1, *_ = moving.arrays(ts)
+    A = absolute_replay(g1, _row(MOUNT1))
+    for k, tk in enumerate(ts):
+        want = MOUNT1 * moving.g1(0.0).inverse() * moving.g1(tk)
+        assert np.abs(_se3(A[k]).homogeneous - want.homogeneous).max() < 1e-12
+
+
+def test_reachability_thresholds_are_1_mm_and_0_1_deg():
+    from sms_cli.hil.reach import IkSolution
+
+    q = np.zeros(6)
+    assert IkSolution(q, 1e-3, math.radians(0.1), []).reachable
+    assert not IkSolution(q, 1.001e-3, 0.0, []).reachable
+    assert not IkSolution(q, 0.0, math.radians(0.1001), []).reachable
+
+
+def test_mirror_replay_without_robots_and_mounts_off_the_initial_geometry(tmp_path):
+    folder = write_run(tmp_path / "run", DRIFT, np.linspace(0.0, 20.0, 41))
+    fac = _facility(tmp_path, GOOD + "moving: servicer\n")
+    r = run_cli("export", "hil", folder, "--facility", fac, "--json", "--no-plots")
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.stdout)
+    assert s["moving"] == "servicer" and s["held"] == "client" and s["reachability"] is None
+    assert s["workspace"]["role"] == "other" and "png" not in " ".join(s["files"])
+    # DRIFT starts 2 m apart, the mounts 1 m: the servicer mock-up starts off its mount, and stderr says where
+    assert s["start_offset"]["distance_m"] > 0.9
+    assert "the mounts do not hold the run's initial relative pose" in r.stderr and f"{fac}:7" in r.stderr
+    r = run_cli("export", "hil", folder, "--facility", fac, "--require-reachable", "--no-plots")
+    assert r.exit_code == 2 and "gives no robot URDF" in r.stderr

@@ -82,7 +82,7 @@ def run_export(results: Path, facility: Path, out: Path | None = None, *, plots:
     cmd = hil_commands(t, motion.g1, motion.g2, motion.V1, motion.V2, mount["master"], mount["other"], moving)
     if cmd.start_offset[0] > OFFSET_WARN_M or cmd.start_offset[1] > OFFSET_WARN_RAD:
         warnings.warn(f"the mounts do not hold the run's initial relative pose: the {name[moving]} mock-up starts "
-                      f"{cmd.start_offset[0]:.4g} m and {np.degrees(cmd.start_offset[1]):.4g} deg from its mount "
+                      f"{round(cmd.start_offset[0], 9):.4g} m and {round(float(np.degrees(cmd.start_offset[1])), 9):.4g} deg from its mount "
                       f"({loaded.where('spacecraft', roles[moving][0], 'mount')})", UserWarning, stacklevel=2)
 
     reach = {}
