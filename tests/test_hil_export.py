@@ -497,7 +497,8 @@ def test_reachability_thresholds_are_1_mm_and_0_1_deg():
 
 def test_mirror_replay_without_robots_and_mounts_off_the_initial_geometry(tmp_path):
     folder = write_run(tmp_path / "run", DRIFT, np.linspace(0.0, 20.0, 41))
-    fac = _facility(tmp_path, GOOD + "moving: servicer\n")
+    fac = _facility(tmp_path, GOOD.replace("quaternion: [0.0, 0.0, 1.0, 0.0]", "rpy: [0 deg, 0 deg, 90 deg]")
+                    + "moving: servicer\n")
     r = run_cli("export", "hil", folder, "--facility", fac, "--json", "--no-plots")
     assert r.exit_code == 0, r.output
     s = json.loads(r.stdout)
@@ -505,6 +506,11 @@ def test_mirror_replay_without_robots_and_mounts_off_the_initial_geometry(tmp_pa
     assert s["workspace"]["role"] == "other" and "png" not in " ".join(s["files"])
     # DRIFT starts 2 m apart, the mounts 1 m: the servicer mock-up starts off its mount, and stderr says where
     assert s["start_offset"]["distance_m"] > 0.9
+    # the absolute replay is the servicer's (body 2's) own motion from its mount, by Pinocchio
+    mount2 = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.pi / 2), np.array([3.0, 0.0, 1.6]))
+    p = np.array([(mount2 * DRIFT.g2(0.0).inverse() * DRIFT.g2(tk)).translation for tk in np.linspace(0.0, 20.0, 41)])
+    got = s["workspace"]["absolute"]["translation_range_m"]
+    assert [got[a] for a in "xyz"] == pytest.approx(list(p.max(axis=0) - p.min(axis=0)), abs=1e-12)
     assert "the mounts do not hold the run's initial relative pose" in r.stderr and f"{fac}:7" in r.stderr
     r = run_cli("export", "hil", folder, "--facility", fac, "--require-reachable", "--no-plots")
     assert r.exit_code == 2 and "gives no robot URDF" in r.stderr
