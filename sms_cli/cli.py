@@ -462,6 +462,63 @@ def campaign_rerun_cmd(
     run_guarded(body, _results_folder(out) if out is not None else [])
 
 
+export_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None, help=(
+    "Export a run for use outside sms: `hil` maps a two-spacecraft run onto a robotic hardware-in-the-loop "
+    "facility (robot poses, reachability, workspace).\n\n"
+    "\b\n    sms export hil results/formation --facility missions/facilities/oos_sim.yaml\n\n" + EXIT_CODES_HELP))
+app.add_typer(export_app, name="export")
+
+
+@export_app.command("hil", cls=_Command)
+def export_hil_cmd(
+    results: ResultsArg,
+    facility: Annotated[Path, typer.Option("--facility", "-f", metavar="FACILITY.yaml", show_default=False, help=(
+        "facility file: mock-up mounts, robots (URDF), which robot moves, the envelope"))],
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="DIR", help=(
+        "write into DIR/hil/ (default: RESULTS_DIR/hil/)"))] = None,
+    as_json: Annotated[bool, typer.Option("--json", help=(
+        "print the summary as JSON: facility, facility_file, results, formation, moving, held, samples, duration_s, "
+        "start_offset, reachability, workspace, files"))] = False,
+    require_reachable: Annotated[bool, typer.Option("--require-reachable", help=(
+        "exit 1 when a robot cannot reach a commanded pose (default: reported, exit 0)"))] = False,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write workspace.png")] = True,
+) -> None:
+    """Hardware-in-the-loop export of a two-spacecraft run (Vicariotto 2023 §6.2): the relative motion as
+    commands to the facility robots.
+
+    Reads RESULTS_DIR/results.json (simulate.formation: master, other, relative_motion) and the
+    relative-motion table it names (t, p1_*, q1_*, p2_*, q2_*, v1_*, w1_*, v2_*, w2_*: base poses
+    world<-base with quaternions x y z w, body twists [v; w] in each base frame). The moving robot
+    replays g12 = g1^-1 g2: g1_HW = g2_HW g12^-1 with the other mock-up held at its mount (or the
+    mirror, g2_HW = g1_HW g12, with moving: other). Writes DIR/hil/commands.csv and commands.mcap
+    (Foxglove /tf of the facility world, mock-ups, robot bases and tools), workspace.json and
+    workspace.png (absolute vs relative replay: ranges, rotation, when each leaves the envelope) and,
+    when the facility gives robot URDFs, checks each pose by inverse kinematics (1 mm, 0.1 deg, joint
+    limits). An unreachable pose is a finding (exit 0) unless --require-reachable (exit 1); a missing or
+    malformed results folder or facility file is exit 2.
+
+    Example:
+
+    \b
+        sms export hil results/formation --facility missions/facilities/oos_sim.yaml --json
+    """
+    folder = (out if out is not None else results) / "hil"
+
+    def body() -> int:
+        from sms_cli.errors import InputError, Location, Problem
+        from sms_cli.hil.stage import all_reachable, format_export, run_export
+
+        summary = run_export(results, facility, out, plots=plots)
+        emit(summary, as_json, format_export)
+        ok = all_reachable(summary)
+        if require_reachable and ok is None:
+            raise InputError(problems=[Problem("--require-reachable: the facility file gives no robot URDF to check",
+                                               Location(facility), hint="add robot: {urdf, base, tool_frame} to a mock-up")])
+        return EXIT_REQUIREMENTS if require_reachable and not ok else 0
+
+    run_guarded(body, [Output(folder, "HIL export folder", folder=True)])
+
+
 @command("report")
 def report_cmd(
     results: ResultsArg,
