@@ -321,3 +321,204 @@ def test_linearised_interface_rings_at_the_frequency(zeta):
         np.testing.assert_allclose(half_periods, T_d / 2, rtol=1e-4, err_msg=f"component {i}")
         decay = np.abs(slope[2:] / slope[:-2])
         np.testing.assert_allclose(decay, math.exp(-zeta * w * T_d), rtol=1e-4, err_msg=f"component {i}")
+
+
+# ------------------------------------------------------------------------------------ conservation
+
+
+def test_wrench_pair_power_and_momentum_identities():
+    """At a random state: the pair's power F_aᵀV_a + F_bᵀV_b equals −dU/dt − V_relᵀ D V_rel (dU/dt by central
+    differences along v), and the two wrenches transported to the world cancel."""
+    model, data, q, target = _arm_stack()
+    v = np.random.default_rng(3).normal(size=model.nv) * 0.2
+    lam = relative_operational_inertia(model, data, q, "ee", "grapple")
+    gains = InterfaceGains.from_frequency(lam, 1.3, 0.4)
+    wrenches = interface_wrenches(model, data, q, v, "ee", "grapple", target, gains)
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    power = sum(F @ (pin.getFrameJacobian(model, data, f, pin.LOCAL) @ v) for f, F in wrenches)
+    V_rel = relative_jacobian(model, data, q, "ee", "grapple") @ v
+    eps = 1e-6
+    U = [interface_energy(model, data, pin.integrate(model, q, s * eps * v), "ee", "grapple", target, gains)
+         for s in (1, -1)]
+    dU = (U[0] - U[1]) / (2 * eps)
+    assert power == pytest.approx(-dU - V_rel @ gains.D @ V_rel, rel=1e-7)
+    pin.framesForwardKinematics(model, data, q)
+    world = sum(data.oMf[f].act(pin.Force(F)).vector for f, F in wrenches)
+    np.testing.assert_allclose(world, 0.0, atol=1e-12 * max(np.abs(F).max() for _, F in wrenches))
+
+
+def _run_energy(model, data, q, v, target, gains, dt, duration):
+    accel = _accel(model, data, "ee", "grapple", target, gains)
+    energies = [_energy(model, data, q, v, "ee", "grapple", target, gains)]
+    for _ in range(int(round(duration / dt))):
+        q, v = _rkmk4_step(model, q, v, dt, accel)
+        energies.append(_energy(model, data, q, v, "ee", "grapple", target, gains))
+    return np.array(energies)
+
+
+def _tumbling_arm_stack():
+    model, data, q, target = _arm_stack()
+    v = np.zeros(model.nv)
+    _set_root_velocity(model, v, "srv_root", [0.01, 0.002, -0.005, 0.01, 0.02, -0.015])
+    _set_root_velocity(model, v, "cli_root", [-0.02, 0.01, 0.015, 0.04, -0.06, 0.05])
+    v[6:8] = [0.05, -0.03]
+    return model, data, q, v, target
+
+
+def test_undamped_interface_conserves_energy_at_the_integrator_order():
+    """Kinetic + interface energy of the tumbling stack (free arm joints, undamped 2 Hz interface): its largest
+    drift over 1 s shrinks by ≥ 2⁴·0.75 when dt halves (RK4; measured ~32x: on a near-linear oscillator RK4's
+    energy error is O(dt⁵)), and it is small against the energy."""
+    model, data, q, v, target = _tumbling_arm_stack()
+    f = 2.0
+    gains = InterfaceGains.from_frequency(relative_operational_inertia(model, data, q, "ee", "grapple"), f, 0.0)
+    drift = []
+    for n in (40, 80):
+        E = _run_energy(model, data, q.copy(), v.copy(), target, gains, 1.0 / f / n, 1.0)
+        drift.append(np.abs(E - E[0]).max())
+    assert drift[1] < 1e-6 * E[0]
+    assert drift[0] / drift[1] >= 12.0, drift
+
+
+def test_damped_interface_never_adds_energy():
+    """With ζ = 0.3 the energy decreases at every step (by far more than the integrator's error)."""
+    model, data, q, v, target = _tumbling_arm_stack()
+    gains = InterfaceGains.from_frequency(relative_operational_inertia(model, data, q, "ee", "grapple"), 2.0, 0.3)
+    E = _run_energy(model, data, q, v, target, gains, 1.0 / 2.0 / 80, 1.5)
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+    assert E[-1] < 0.5 * E[0]
+
+
+def test_momentum_through_a_capture():
+    """Servicer with a free (unactuated) arm and a tumbling, approaching client fly free until t_c = 0.5 s, then
+    the 1 Hz, ζ = 0.7 interface joins end effector and grapple. World momentum (about the world origin) before =
+    after to 1e-9 relative; two independent momentum sums agree."""
+    model, data, q, v, target = _tumbling_arm_stack()
+    t_c, f, dt = 0.5, 1.0, 1.0 / 400
+    free = _accel(model, data, "ee", "grapple", target, None)
+    h0 = system_momentum(model, data, q, v)
+    scale = np.linalg.norm(h0)
+    np.testing.assert_allclose(_momentum_by_bodies(model, data, q, v), h0, atol=1e-13 * scale)
+    for _ in range(int(round(t_c / dt))):
+        q, v = _rkmk4_step(model, q, v, dt, free)
+    monitor = CaptureMonitor(model)
+    monitor.at_capture(data, t_c, q, v, "ee", "grapple", target)
+    pin.framesForwardKinematics(model, data, q)
+    d, a = check_capture_offset(data.oMf[model.getFrameId("ee")], data.oMf[model.getFrameId("grapple")], target,
+                                t_c, 0.05, 5.0)
+    assert (d, a) == monitor.offset and d > 0.01 and a > 1.0
+    gains = InterfaceGains.from_frequency(relative_operational_inertia(model, data, q, "ee", "grapple"), f, 0.7)
+    joined = _accel(model, data, "ee", "grapple", target, gains)
+    for _ in range(int(round(4.0 / dt))):
+        q, v = _rkmk4_step(model, q, v, dt, joined)
+        monitor.sample(interface_wrenches(model, data, q, v, "ee", "grapple", target, gains))
+    m = monitor.finish(data, q, v)
+    np.testing.assert_allclose(m.momentum_before, h0, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(m.momentum_after, m.momentum_before, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(_momentum_by_bodies(model, data, q, v), m.momentum_after, atol=1e-13 * scale)
+    assert m.peak_force_N > 0 and m.peak_torque_Nm > 0 and m.t_capture == t_c
+
+
+def test_docked_stack_turns_at_the_locked_rate():
+    """Two rigid spacecraft docked port to port (ζ = 0.7, 1 Hz) while tumbling at Ω: 5 s later the relative motion has
+    died down to the interface's quasi-static deflection under the spin, (Ω/ω)² ≈ 2e-5 (measured 3e-6), and both
+    bodies turn at the stack's locked rate ω_L = I_G⁻¹ L_G to that accuracy, while the CoM moves at p/m: ``CaptureMetrics.stack_twist`` (world axes) and ``stack_rate_base`` (servicer base axes)."""
+    model = _two_bodies_at_coms()
+    data = model.createData()
+    q, v = pin.neutral(model), np.zeros(model.nv)
+    _set_root(model, q, "A_root", pin.SE3(_rot([0.5, -0.3, 1.1]), np.array([0.3, 0.2, -0.1])))
+    target = pin.SE3(_rot([0.2, 0.5, -0.3]), np.array([1.2, -0.3, 0.4]))
+    _place_b_at(model, data, q, "a_com", "b_com", "B_root", target * pin.exp6(np.array([0.02, 0, -0.01, 0, 0.03, 0])))
+    _set_root_velocity(model, v, "A_root", [0.01, 0.0, 0.02, 0.02, -0.01, 0.03])
+    _set_root_velocity(model, v, "B_root", [-0.03, 0.01, 0.0, -0.05, 0.08, 0.02])
+    gains = InterfaceGains.from_frequency(relative_operational_inertia(model, data, q, "a_com", "b_com"), 1.0, 0.7)
+    V_rel_c = relative_jacobian(model, data, q, "a_com", "b_com") @ v
+    monitor = CaptureMonitor(model)
+    monitor.at_capture(data, 0.0, q, v, "a_com", "b_com", target)
+    accel = _accel(model, data, "a_com", "b_com", target, gains)
+    for _ in range(int(round(5.0 * 200))):
+        q, v = _rkmk4_step(model, q, v, 1.0 / 200, accel)
+        monitor.sample(interface_wrenches(model, data, q, v, "a_com", "b_com", target, gains))
+    m = monitor.finish(data, q, v)
+    omega = m.stack_twist[3:]
+    quasi_static = (np.linalg.norm(omega) / (2 * math.pi * 1.0)) ** 2  # the interface's deflection under the spin
+    assert np.linalg.norm(relative_jacobian(model, data, q, "a_com", "b_com") @ v) < quasi_static * np.linalg.norm(V_rel_c)
+    pin.forwardKinematics(model, data, q, v)
+    for j in (1, 2):
+        np.testing.assert_allclose(data.oMi[j].rotation @ data.v[j].angular, omega,
+                                   atol=quasi_static * np.linalg.norm(omega))
+    np.testing.assert_allclose(m.stack_rate_base, v[3:6], atol=quasi_static * np.linalg.norm(omega))
+    mass = sum(model.inertias[j].mass for j in (1, 2))
+    np.testing.assert_allclose(m.stack_twist[:3], m.momentum_after[:3] / mass, atol=1e-14)
+    np.testing.assert_allclose(m.momentum_after, m.momentum_before, atol=1e-9 * np.linalg.norm(m.momentum_before))
+
+
+def test_peak_force_of_a_head_on_capture():
+    """Point-mass-like bodies meeting tip to tip along x at relative speed v0, undamped interface at f: a 1-D
+    oscillator of the reduced mass μ, so the peak force is μ ω v0, no torque, and the stack moves at the
+    CoM velocity (m1 v1 + m2 v2)/(m1 + m2) without turning."""
+    m1, m2, v1, v2, f = 4.0, 6.0, 0.03, -0.02, 2.0
+    model, target = _two_points(m1, m2, 0.5)
+    data = model.createData()
+    q, v = pin.neutral(model), np.zeros(model.nv)
+    _set_root(model, q, "B_root", pin.SE3(np.eye(3), np.array([1.0, 0.0, 0.0])))
+    _set_root_velocity(model, v, "A_root", [v1, 0, 0, 0, 0, 0])
+    _set_root_velocity(model, v, "B_root", [v2, 0, 0, 0, 0, 0])
+    gains = InterfaceGains.from_frequency(relative_operational_inertia(model, data, q, "a_tip", "b_tip"), f, 0.0)
+    monitor = CaptureMonitor(model)
+    monitor.at_capture(data, 0.0, q, v, "a_tip", "b_tip", target)
+    accel = _accel(model, data, "a_tip", "b_tip", target, gains)
+    dt = 1.0 / f / 400
+    for _ in range(400):
+        q, v = _rkmk4_step(model, q, v, dt, accel)
+        monitor.sample(interface_wrenches(model, data, q, v, "a_tip", "b_tip", target, gains))
+    m = monitor.finish(data, q, v)
+    mu, w = m1 * m2 / (m1 + m2), 2 * math.pi * f
+    assert m.peak_force_N == pytest.approx(mu * w * abs(v2 - v1), rel=1e-4)
+    assert m.peak_torque_Nm < 1e-12 * m.peak_force_N
+    np.testing.assert_allclose(m.stack_twist, [(m1 * v1 + m2 * v2) / (m1 + m2), 0, 0, 0, 0, 0], atol=1e-14)
+    assert (m.offset_m, m.offset_deg) == (0.0, 0.0)
+
+
+# --------------------------------------------------------------------------------- user-facing checks
+
+
+def test_check_resolution_needs_twenty_steps_per_period():
+    where = Location("missions/capture.yaml", 12, 5)
+    f = 12.0
+    T = 1.0 / f
+    check_resolution(T / 20, f, where)
+    with pytest.raises(InputError) as err:
+        check_resolution(T / 19, f, where, "simulation.dt")
+    assert err.value.exit_code == EXIT_INPUT
+    text = err.value.render()
+    assert "missions/capture.yaml:12:5" in text and "simulation.dt" in text
+    assert "19.0 steps per period" in text and "dt ≤ 0.0041 s" in text
+    with pytest.raises(InputError) as err:
+        check_resolution(0.01, f, where)
+    assert ("plant step 0.01 s resolves the 12 Hz capture interface with 8.3 steps per period; it needs ≥ 20: "
+            "set simulation dt ≤ 0.0041 s or lower the interface frequency to ≤ 5 Hz") in err.value.render()
+    check_resolution(0.0041, f, where)  # the advised dt is accepted
+
+
+def test_capture_offset_names_the_distance():
+    """A grapple placed 0.153 m and 12.1 deg from its target pose: measured exactly; beyond the tolerance a
+    NumericalError (exit 3) says how far."""
+    g_a = pin.SE3(_rot([0.3, -0.2, 0.9]), np.array([4.0, -1.0, 2.0]))
+    target = pin.SE3(_rot([0.0, 0.0, math.pi]), np.array([0.05, 0.0, 0.0]))
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    p = 0.153 * np.array([0.6, 0.0, -0.8])
+    g_b = g_a * target * pin.SE3(pin.exp3(math.radians(12.1) * axis), p)
+    d, a = capture_offset(g_a, g_b, target)
+    assert d == pytest.approx(0.153, rel=1e-12) and a == pytest.approx(12.1, rel=1e-12)
+    assert check_capture_offset(g_a, g_b, target, 20.0, 0.2, 15.0) == (d, a)
+    with pytest.raises(NumericalError) as err:
+        check_capture_offset(g_a, g_b, target, 20.0, 0.05, 5.0)
+    assert err.value.exit_code == EXIT_NUMERICAL
+    assert ("at the capture time t = 20.0 s the end effector is 0.153 m and 12.1 deg from the grapple fixture; "
+            "tolerance 0.05 m / 5 deg") in err.value.render()
+    with pytest.raises(NumericalError, match="0.153 m"):
+        check_capture_offset(g_a, g_b, target, 20.0, 0.05, 15.0)  # the distance alone
+    with pytest.raises(NumericalError, match="12.1 deg"):
+        check_capture_offset(g_a, g_b, target, 20.0, 0.2, 5.0)  # the angle alone

@@ -117,7 +117,8 @@ class InterfaceGains:
 def _fmt_floor(x: float, digits: int = 2) -> str:
     """x rounded DOWN to ``digits`` significant digits, so that the printed bound still satisfies it."""
     e = math.floor(math.log10(x)) - digits + 1
-    return f"{math.floor(x / 10.0**e * (1 + 1e-12)) * 10.0**e:.{max(0, -e)}f}"
+    s = f"{math.floor(x / 10.0**e * (1 + 1e-12)) * 10.0**e:.{max(0, -e)}f}"
+    return s.rstrip("0").rstrip(".") if "." in s else s
 
 
 def check_resolution(dt: float, natural_frequency_hz: float, where: Location | None, field: str = "") -> None:
