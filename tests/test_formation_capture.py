@@ -26,7 +26,6 @@ from sms_cli.formation.capture import (
     interface_energy,
     interface_wrenches,
     joint_forces,
-    locked_twist,
     relative_jacobian,
     relative_operational_inertia,
     system_momentum,
@@ -188,7 +187,7 @@ def test_two_mass_reduced_mass(tip):
     lam = relative_operational_inertia(model, data, q, "a_tip", "b_tip")
     mu = m1 * m2 / (m1 + m2)
     assert lam[0, 0] == pytest.approx(mu, rel=1e-12)
-    np.testing.assert_allclose(lam[0, 1:], 0.0, atol=1e-12 * mu)
+    np.testing.assert_allclose(lam[0, 1:], 0.0, rtol=0, atol=1e-12 * mu)
     if tip == 0.0:
         np.testing.assert_allclose(lam[:3, :3], mu * np.eye(3), rtol=0, atol=1e-12 * mu)
 
@@ -215,7 +214,7 @@ def test_relative_inertia_from_spatial_inertias():
     pin.forwardKinematics(model, data, q, v)
     V_a = pin.getFrameVelocity(model, data, fa, pin.LOCAL).vector
     V_b = pin.getFrameVelocity(model, data, fb, pin.LOCAL).vector
-    np.testing.assert_allclose(J_rel @ v, V_b - Ad @ V_a, atol=1e-12)
+    np.testing.assert_allclose(J_rel @ v, V_b - Ad @ V_a, rtol=0, atol=1e-12)
 
 
 def test_relative_inertia_from_aba_response():
@@ -233,7 +232,7 @@ def test_relative_inertia_from_aba_response():
         F_b = np.eye(6)[k]
         a = pin.aba(model, data, q, zero, zero, joint_forces(model, [(fa, -Ad.T @ F_b), (fb, F_b)]))
         mobility[:, k] = J_rel @ a  # J̇_rel v = 0 at rest
-    np.testing.assert_allclose(lam @ mobility, np.eye(6), atol=1e-9)
+    np.testing.assert_allclose(lam @ mobility, np.eye(6), rtol=0, atol=1e-9)
 
     v = np.random.default_rng(2).normal(size=model.nv) * 0.1
     wrenches = [(fa, np.arange(1.0, 7.0)), (fb, np.array([0.5, -2.0, 1.0, 0.3, 0.1, -0.7]))]
@@ -241,7 +240,7 @@ def test_relative_inertia_from_aba_response():
     pin.updateFramePlacements(model, data)
     tau = sum(pin.getFrameJacobian(model, data, f, pin.LOCAL).T @ F for f, F in wrenches)
     np.testing.assert_allclose(pin.aba(model, data, q, v, zero, joint_forces(model, wrenches)),
-                               pin.aba(model, data, q, v, tau), atol=1e-10)
+                               pin.aba(model, data, q, v, tau), rtol=0, atol=1e-10)
 
 
 def test_same_body_frames_are_refused():
@@ -345,7 +344,7 @@ def test_wrench_pair_power_and_momentum_identities():
     assert power == pytest.approx(-dU - V_rel @ gains.D @ V_rel, rel=1e-7)
     pin.framesForwardKinematics(model, data, q)
     world = sum(data.oMf[f].act(pin.Force(F)).vector for f, F in wrenches)
-    np.testing.assert_allclose(world, 0.0, atol=1e-12 * max(np.abs(F).max() for _, F in wrenches))
+    np.testing.assert_allclose(world, 0.0, rtol=0, atol=1e-12 * max(np.abs(F).max() for _, F in wrenches))
 
 
 def _run_energy(model, data, q, v, target, gains, dt, duration):
@@ -399,7 +398,7 @@ def test_momentum_through_a_capture():
     free = _accel(model, data, "ee", "grapple", target, None)
     h0 = system_momentum(model, data, q, v)
     scale = np.linalg.norm(h0)
-    np.testing.assert_allclose(_momentum_by_bodies(model, data, q, v), h0, atol=1e-13 * scale)
+    np.testing.assert_allclose(_momentum_by_bodies(model, data, q, v), h0, rtol=0, atol=1e-13 * scale)
     for _ in range(int(round(t_c / dt))):
         q, v = _rkmk4_step(model, q, v, dt, free)
     monitor = CaptureMonitor(model)
@@ -416,14 +415,15 @@ def test_momentum_through_a_capture():
     m = monitor.finish(data, q, v)
     np.testing.assert_allclose(m.momentum_before, h0, rtol=0, atol=1e-9 * scale)
     np.testing.assert_allclose(m.momentum_after, m.momentum_before, rtol=0, atol=1e-9 * scale)
-    np.testing.assert_allclose(_momentum_by_bodies(model, data, q, v), m.momentum_after, atol=1e-13 * scale)
+    np.testing.assert_allclose(_momentum_by_bodies(model, data, q, v), m.momentum_after, rtol=0, atol=1e-13 * scale)
     assert m.peak_force_N > 0 and m.peak_torque_Nm > 0 and m.t_capture == t_c
 
 
 def test_docked_stack_turns_at_the_locked_rate():
     """Two rigid spacecraft docked port to port (ζ = 0.7, 1 Hz) while tumbling at Ω: 5 s later the relative motion has
     died down to the interface's quasi-static deflection under the spin, (Ω/ω)² ≈ 2e-5 (measured 3e-6), and both
-    bodies turn at the stack's locked rate ω_L = I_G⁻¹ L_G to that accuracy, while the CoM moves at p/m: ``CaptureMetrics.stack_twist`` (world axes) and ``stack_rate_base`` (servicer base axes)."""
+    bodies turn at the stack's locked rate ω_L = I_G⁻¹ L_G to that accuracy, while the CoM moves at p/m:
+    ``CaptureMetrics.stack_twist`` (world axes) and ``stack_rate_base`` (servicer base axes)."""
     model = _two_bodies_at_coms()
     data = model.createData()
     q, v = pin.neutral(model), np.zeros(model.nv)
@@ -443,15 +443,17 @@ def test_docked_stack_turns_at_the_locked_rate():
     m = monitor.finish(data, q, v)
     omega = m.stack_twist[3:]
     quasi_static = (np.linalg.norm(omega) / (2 * math.pi * 1.0)) ** 2  # the interface's deflection under the spin
-    assert np.linalg.norm(relative_jacobian(model, data, q, "a_com", "b_com") @ v) < quasi_static * np.linalg.norm(V_rel_c)
+    V_rel = relative_jacobian(model, data, q, "a_com", "b_com") @ v
+    assert np.linalg.norm(V_rel) < quasi_static * np.linalg.norm(V_rel_c)
     pin.forwardKinematics(model, data, q, v)
     for j in (1, 2):
         np.testing.assert_allclose(data.oMi[j].rotation @ data.v[j].angular, omega,
-                                   atol=quasi_static * np.linalg.norm(omega))
-    np.testing.assert_allclose(m.stack_rate_base, v[3:6], atol=quasi_static * np.linalg.norm(omega))
+                                   rtol=0, atol=quasi_static * np.linalg.norm(omega))
+    np.testing.assert_allclose(m.stack_rate_base, v[3:6], rtol=0, atol=quasi_static * np.linalg.norm(omega))
     mass = sum(model.inertias[j].mass for j in (1, 2))
-    np.testing.assert_allclose(m.stack_twist[:3], m.momentum_after[:3] / mass, atol=1e-14)
-    np.testing.assert_allclose(m.momentum_after, m.momentum_before, atol=1e-9 * np.linalg.norm(m.momentum_before))
+    np.testing.assert_allclose(m.stack_twist[:3], m.momentum_after[:3] / mass, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(m.momentum_after, m.momentum_before, rtol=0,
+                               atol=1e-9 * np.linalg.norm(m.momentum_before))
 
 
 def test_peak_force_of_a_head_on_capture():
@@ -477,7 +479,7 @@ def test_peak_force_of_a_head_on_capture():
     mu, w = m1 * m2 / (m1 + m2), 2 * math.pi * f
     assert m.peak_force_N == pytest.approx(mu * w * abs(v2 - v1), rel=1e-4)
     assert m.peak_torque_Nm < 1e-12 * m.peak_force_N
-    np.testing.assert_allclose(m.stack_twist, [(m1 * v1 + m2 * v2) / (m1 + m2), 0, 0, 0, 0, 0], atol=1e-14)
+    np.testing.assert_allclose(m.stack_twist, [(m1 * v1 + m2 * v2) / (m1 + m2), 0, 0, 0, 0, 0], rtol=0, atol=1e-14)
     assert (m.offset_m, m.offset_deg) == (0.0, 0.0)
 
 
@@ -500,6 +502,9 @@ def test_check_resolution_needs_twenty_steps_per_period():
     assert ("plant step 0.01 s resolves the 12 Hz capture interface with 8.3 steps per period; it needs ≥ 20: "
             "set simulation dt ≤ 0.0041 s or lower the interface frequency to ≤ 5 Hz") in err.value.render()
     check_resolution(0.0041, f, where)  # the advised dt is accepted
+    for dt, freq in ((0.0, f), (0.01, 0.0), (math.nan, f)):
+        with pytest.raises(InputError, match="must be positive"):
+            check_resolution(dt, freq, where)
 
 
 def test_capture_offset_names_the_distance():

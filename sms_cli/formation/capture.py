@@ -79,9 +79,10 @@ def relative_operational_inertia(model: pin.Model, data: pin.Data, q: np.ndarray
     inv_lambda = 0.5 * (inv_lambda + inv_lambda.T)
     scale = np.linalg.eigvalsh(J_b @ X[:, 6:])[-1]  # frame b's own mobility: what "small" is measured against
     if np.linalg.eigvalsh(inv_lambda)[0] <= 1e-9 * scale:
+        name_a, name_b = (model.frames[frame_id(model, f)].name for f in (frame_a, frame_b))
         raise NumericalError(problems=[Problem(
-            f"frames '{model.frames[frame_id(model, frame_a)].name}' and '{model.frames[frame_id(model, frame_b)].name}'"
-            " cannot move relative to each other in all six directions (relative operational inertia singular)",
+            f"frames '{name_a}' and '{name_b}' cannot move relative to each other in all six directions"
+            " (relative operational inertia singular)",
             None, "capture", "join frames of the two spacecraft, not two frames of one rigid body")])
     lam = np.linalg.inv(inv_lambda)
     return 0.5 * (lam + lam.T)
@@ -123,6 +124,9 @@ def _fmt_floor(x: float, digits: int = 2) -> str:
 
 def check_resolution(dt: float, natural_frequency_hz: float, where: Location | None, field: str = "") -> None:
     """Refuse (``InputError``, exit 2) a plant step dt (s) coarser than T/20, T = 1/f the interface period."""
+    for value, what in ((dt, "the simulation step"), (natural_frequency_hz, "the interface frequency")):
+        if not (math.isfinite(value) and value > 0):
+            raise InputError(problems=[Problem(f"{what} must be positive, got {value:g}", where, field)])
     steps = 1.0 / (natural_frequency_hz * dt)
     if steps * (1 + 1e-12) >= STEPS_PER_PERIOD:
         return
@@ -132,7 +136,8 @@ def check_resolution(dt: float, natural_frequency_hz: float, where: Location | N
         f"plant step {dt:g} s resolves the {natural_frequency_hz:g} Hz capture interface with {steps:.1f} steps per"
         f" period; it needs ≥ {STEPS_PER_PERIOD}: set simulation dt ≤ {_fmt_floor(need)} s or lower the interface"
         f" frequency to ≤ {_fmt_floor(f_max)} Hz", where, field,
-        f"dt ≤ 1/({STEPS_PER_PERIOD} f) = {need:.3g} s")])
+        f"the interface period is T = 1/f = {1.0 / natural_frequency_hz:.4g} s;"
+        f" the step must be ≤ T/{STEPS_PER_PERIOD}")])
 
 
 def pose_error(g_a: pin.SE3, g_b: pin.SE3, g_ab_target: pin.SE3) -> pin.SE3:
