@@ -137,6 +137,21 @@ def test_s6_through_the_cli(tmp_path):
         robot = next(m for _, _, m in reader.iter_messages(topics=["/robot_description"]))
     assert {"/tf", "/locked/twist", "/shape/twist", "/momentum/total", "/momentum/relative", "/energy"} <= topics
     assert b"client/bus" in robot.data and b"servicer/bus" in robot.data
+    # the HIL export of the run (formation.facility): g1_HW⁻¹ g2_HW = g12 at every sample (Vicariotto 2023 (6.2))
+    import csv
+
+    import pinocchio as pin
+
+    rel = np.loadtxt(out / "relative_motion.csv", delimiter=",", skiprows=1)
+    rows = list(csv.DictReader(open(out / "hil" / "commands.csv")))
+    pose = lambda r: pin.XYZQUATToSE3(np.array([float(r[k]) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")]))
+    moving = [pose(r) for r in rows if r["role"] == "moving"]
+    held = pose(next(r for r in rows if r["role"] == "held"))
+    assert len(moving) == rel.shape[0]
+    for k, g1_hw in enumerate(moving):
+        g12 = pin.XYZQUATToSE3(rel[k, 1:8]).actInv(pin.XYZQUATToSE3(rel[k, 8:15]))
+        assert np.max(np.abs((g1_hw.actInv(held)).homogeneous - g12.homogeneous)) < 1e-12
+    assert sim["hil"]["workspace"]["relative"]["inside_fraction"] == 1.0
 
 
 def test_compile_summarises_both_spacecraft():

@@ -154,6 +154,9 @@ class FormationSpec(StrictModel):
     capture: CaptureSpec | None = Field(None, description="join a servicer frame to a client frame at a given time")
     arm_hold: ArmHoldSpec | None = Field(None, description="the servicer's arm joints held by a joint PD (an arm "
                                                              "without it is left free: zero joint torque)")
+    facility: str | None = Field(
+        None, description="a hardware-in-the-loop facility file (sms export hil --facility): when given, the run "
+                          "also exports the facility robots' commands and the workspace comparison into <results>/hil/")
     settle_position: Length = Field(0.01, gt=0, description="shape position band for settling time (m)")
     settle_angle: Angle = Field(0.5 * 3.141592653589793 / 180, gt=0, description="shape angle band for settling time")
 

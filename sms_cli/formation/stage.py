@@ -118,6 +118,13 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
         section["files"] = {"mcap": str(mcap_path), "csv": TRACE, "relative_motion": RELATIVE_MOTION,
                             "plots": [p.name for p in plots]}
         results.update("simulate", section)
+        if spec.facility is not None and result.status == "completed":
+            from sms_cli.hil.stage import run_export
+
+            hil = run_export(results.path, loaded.resolve(spec.facility, ("formation", "facility")))
+            section["hil"] = {k: hil[k] for k in ("facility", "moving", "held", "start_offset", "reachability", "workspace")}
+            section["files"]["hil"] = [str(Path(f).relative_to(results.path)) for f in hil["files"].values()]
+            results.update("simulate", section)
     if result.status == "interrupted":
         print(f"interrupted at t = {result.t_end:.6g} s: what ran is in {results.path}/", file=sys.stderr, flush=True)
         raise KeyboardInterrupt

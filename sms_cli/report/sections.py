@@ -555,6 +555,26 @@ def formation_section(sim: dict[str, Any], folder: Path) -> Section:
                        f"{fmt(tm.get('real_time_factor'))}× real time ({fmt(tm.get('steps'))} steps)")
     for name in _pngs(sim.get("files", {}).get("plots", [])):
         s.add(figure_from_file(folder, name, FORMATION_CAPTIONS.get(name, _caption_from_name(name))))
+    hil = sim.get("hil")
+    if isinstance(hil, dict):
+        ws = hil.get("workspace", {})
+        rows = []
+        for kind in ("absolute", "relative"):
+            w = ws.get(kind, {})
+            r = w.get("translation_range_m", {})
+            rows.append([kind, ", ".join(fmt(r.get(a)) for a in "xyz"), fmt(w.get("max_rotation_deg")),
+                         fmt(w.get("leaves_envelope_s")) if w.get("leaves_envelope_s") is not None else "never",
+                         fmt(w.get("inside_fraction"))])
+        s.add(Table(f"Hardware-in-the-loop replay on {hil.get('facility')}: {hil.get('moving')}'s robot moves, "
+                    f"{hil.get('held')}'s holds (Vicariotto 2023 (6.2))",
+                    ["replay", "translation range x, y, z [m]", "max rotation [deg]", "leaves the envelope at [s]",
+                     "fraction inside [–]"], rows, [False, False, True, True, True]))
+        for name, rc in (hil.get("reachability") or {}).items():
+            s.notes.append(f"{name}'s facility robot: " + ("every commanded pose reachable" if rc.get("all_reachable") else
+                           f"first unreachable at {fmt(rc.get('first_unreachable_s'))} s ({rc.get('reason')})"))
+        s.add(figure_from_file(folder, "hil/workspace.png",
+                               "The facility workspace an absolute replay would need against the relative one "
+                               "(Vicariotto 2023 L203-L207: the COMRADE absolute spin fitted only 12 s)."))
     return s
 
 
