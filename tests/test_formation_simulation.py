@@ -184,3 +184,44 @@ def test_formation_without_client_is_refused(tmp_path):
     path.write_text("name: x\nrobot: {urdf: %s}\nformation: {duration: 1 s}\n" % (ROOT / "robots" / "vicariotto_servicer.urdf"))
     r = runner.invoke(app, ["simulate", str(path), "-o", str(tmp_path / "out")])
     assert r.exit_code == 2 and "client" in r.output
+
+
+CAPTURE = ROOT / "missions" / "caldera_capture_tumbling.yaml"
+
+
+def test_capture_keeps_momentum_and_joins_the_frames(tmp_path):
+    """Through the capture only internal wrenches act: momentum after = before (1e-9 of what the interface exchanged);
+    the joined frames end together (the interface is damped: ζ = 0.7 at 0.5 Hz)."""
+    loaded = _variant(CAPTURE, "formation: {duration: 12 s}\n", tmp_path)
+    sim = _simulation(loaded)
+    result = sim.run()
+    c = result.capture
+    assert c["engaged"] and c["offset_m"] < 0.05
+    assert c["linear_momentum_change_rel"] < 1e-9 and c["angular_momentum_change_rel"] < 1e-9
+    assert c["linear_impulse_exchanged_Ns"] > 0.01  # the interface did act
+    import pinocchio as pin
+
+    from sms_cli.formation.capture import capture_offset
+
+    pin.framesForwardKinematics(sim.plant.model, sim.capture.data, sim.final_q)
+    d, a = capture_offset(sim.capture.data.oMf[sim.capture.frame_a], sim.capture.data.oMf[sim.capture.frame_b],
+                          sim.capture.target)
+    assert d < 0.1 * c["offset_m"] and a < 0.1 * c["offset_deg"]
+
+
+@pytest.mark.parametrize("extra, code, needles", [
+    ("formation: {capture: {at: 10 s}}\n", 3, ["capture time t = 10", "tolerance 0.05 m"]),
+    ("formation: {capture: {natural_frequency: 25 Hz}}\n", 2, ["steps per period", "dt ≤"]),
+    ("formation: {capture: {client_frame: grappel}}\n", 2, ["grappel", "did you mean 'grapple'"]),
+])
+def test_capture_input_and_miss(extra, code, needles, tmp_path):
+    path = tmp_path / "cap.yaml"
+    path.write_text(f"extends: {CAPTURE}\n{extra}")
+    r = runner.invoke(app, ["simulate", str(path), "-o", str(tmp_path / "out")])
+    assert r.exit_code == code, r.output
+    text = " ".join(r.output.split())
+    for n in needles:
+        assert n in text, text
+    assert "Traceback" not in r.output
+    if code == 2:
+        assert "cap.yaml:" in text

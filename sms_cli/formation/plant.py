@@ -169,6 +169,14 @@ class TwoBodyPlant:
                 arm_v=np.array([vo + j.v_index for j in sm.arm], dtype=int), frames=frames))
         return cls(model, (bodies[0], bodies[1]))
 
+    def add_frame(self, name: str, frame_id: int, placement: pin.SE3) -> int:
+        """Add a frame at ``placement`` in frame ``frame_id`` (combined ids; e.g. a capture interface); its id."""
+        parent = self.model.frames[frame_id]
+        fid = self.model.addFrame(pin.Frame(name, parent.parentJoint, frame_id, parent.placement * placement,
+                                            pin.FrameType.OP_FRAME))
+        self.data, self._kin = self.model.createData(), self.model.createData()
+        return fid
+
     # ------------------------------------------------------------------ state
     def body(self, i: int | str) -> BodyMap:
         """Body 0 (master, body 1 of the thesis) or 1 (other), or by name."""

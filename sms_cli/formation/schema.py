@@ -78,13 +78,22 @@ class SubsystemControl(StrictModel):
 
 
 class InitialMotion(StrictModel):
-    """Initial velocities as the two artificial systems' twists (Vicariotto 2023 (5.5)): the locked twist V_L in
-    the master's frame and the shape twist V_E (the body twist of g12) in the other body's frame. The wheels keep
-    their initial speeds; each base's twist is set so that its locked twist (momentum-based, wheels included) is
-    the one these imply."""
+    """Initial velocities, either as the two artificial systems' twists (Vicariotto 2023 (5.5)) — the locked twist
+    V_L in the master's frame and the shape twist V_E (the body twist of g12) in the other body's frame; each base's
+    twist is then set so that its locked twist (momentum-based, wheels included) is the one these imply — or as each
+    spacecraft's own base twist (``bodies``, its base frame). The wheels keep their initial speeds."""
 
     locked: TwistSpec = Field(default_factory=TwistSpec)
     shape: TwistSpec = Field(default_factory=TwistSpec)
+    bodies: dict[str, TwistSpec] = Field(
+        default_factory=dict, description="base twist per spacecraft ('servicer', the client's name), base frame; "
+                                          "instead of locked and shape")
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        if self.bodies and ({"locked", "shape"} & self.model_fields_set):
+            raise ValueError("give the initial motion as locked/shape twists or per body (bodies:), not both")
+        return self
 
 
 class PushSpec(StrictModel):

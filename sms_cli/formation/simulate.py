@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from sms_cli.formation.decomposition import decompose
+from sms_cli.formation.capture_phase import CaptureMissed
 from sms_cli.formation.laws import BodyState, RelativeLaw
 from sms_cli.formation.schema import SERVICER
 
@@ -32,7 +32,7 @@ class FormationResult:
     trace: dict[str, np.ndarray]
     wall_s: float
     divergence: str = ""
-    pushes: list[dict] = field(default_factory=list)
+    capture: dict | None = None
 
 
 def _pose(p) -> pin.SE3:
@@ -43,7 +43,7 @@ class FormationSimulation:
     """Simulates a mission's ``formation:`` section. ``servicer`` and ``client`` are the two SystemModels;
     body 1 (the master) is the one ``formation.master`` names."""
 
-    def __init__(self, mission, servicer, client, recorder=None, progress: bool | None = None):
+    def __init__(self, mission, servicer, client, recorder=None, progress: bool | None = None, locate=None):
         from sms_cli.formation.plant import TwoBodyPlant
 
         self.spec = spec = mission.formation
@@ -52,7 +52,17 @@ class FormationSimulation:
         self.names = (spec.master, names[1] if spec.master == names[0] else names[0])
         self.plant = TwoBodyPlant.build(models[self.names[0]], models[self.names[1]], names=self.names)
         self.recorder = recorder
+        from sms_cli.formation.capture_phase import CapturePhase
         from sms_cli.formation.recording import RecordedLinks
+
+        locate = locate or (lambda path: None)
+        self.capture = (CapturePhase(spec.capture, self.plant, SERVICER, mission.client.name, float(spec.dt), locate)
+                        if spec.capture is not None else None)
+        servicer_body = self.plant.body(SERVICER)
+        self.arm_v = servicer_body.arm_v
+        self.arm_q = np.array([servicer_body.q.start + 7 + (j - servicer_body.joints_v.start)
+                               for j in servicer_body.arm_v], dtype=int)
+        self.arm_limits = np.array([a.max_effort for a in servicer_body.system.arm], float)
 
         self.links = RecordedLinks(self.plant)
         self.progress = sys.stderr.isatty() if progress is None else progress
@@ -64,6 +74,7 @@ class FormationSimulation:
         self.g0 = (poses[self.names[0]], poses[self.names[1]])
         self.wheel_limits = [np.array([w.max_torque for w in b.system.wheels], float) for b in self.plant.bodies]
         self.q, self.v = self._initial_state()
+        self.arm_q0 = self.q[self.arm_q].copy()
         self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]))
 
     # ---------------------------------------------------------------- state
@@ -71,9 +82,13 @@ class FormationSimulation:
         """q, v with the wheels at their initial speeds and the bases moving so that the locked and shape twists
         are ``formation.initial``'s."""
         p = self.plant
+        ini = self.spec.initial
+        if ini.bodies:  # each base's own twist (its base frame)
+            V = [np.concatenate([np.asarray(ini.bodies[n].linear, float), np.asarray(ini.bodies[n].angular, float)])
+                 if n in ini.bodies else np.zeros(6) for n in self.names]
+            return p.initial_state(self.g0[0], V[0], self.g0[1], V[1])
         q, v = p.initial_state(self.g0[0], np.zeros(6), self.g0[1], np.zeros(6))
         dec, _, _ = p.decomposition(q, v)
-        ini = self.spec.initial
         V_L = np.concatenate([np.asarray(ini.locked.linear, float), np.asarray(ini.locked.angular, float)])
         V_E = np.concatenate([np.asarray(ini.shape.linear, float), np.asarray(ini.shape.angular, float)])
         xi = dec.body_twists(V_L, V_E)
@@ -122,6 +137,23 @@ class FormationSimulation:
 
         return reaction
 
+    def _interface(self, reaction):
+        """interface(q, v) for the plant step: the internal pair's reaction and the capture interface, or None."""
+        if self.capture is None or self.capture.gains is None:
+            return reaction
+        if reaction is None:
+            return self.capture.wrenches
+        return lambda qs, vs: [*reaction(qs, vs), *self.capture.wrenches(qs, vs)]
+
+    def _arm_hold(self, q, v) -> np.ndarray:
+        """The servicer's arm torques: the joint PD of ``formation.arm_hold`` about the initial configuration,
+        clipped to each joint's effort limit (zero without arm_hold)."""
+        hold = self.spec.arm_hold
+        if hold is None:
+            return np.zeros(self.arm_v.size)
+        tau = -float(hold.kp) * (q[self.arm_q] - self.arm_q0) - float(hold.kd) * v[self.arm_v]
+        return np.clip(tau, -self.arm_limits, self.arm_limits)
+
     # ---------------------------------------------------------------- pushes
     def _push_wrenches(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The push wrenches on body 1 and body 2 (base frames, [f; p × f]) acting over the step starting at t."""
@@ -159,10 +191,16 @@ class FormationSimulation:
                 if k == n_steps:
                     break
                 P1, P2 = self._push_wrenches(t)
+                if self.capture is not None:
+                    if self.capture.due(t):
+                        self.capture.engage(t, q, v)
+                    self.capture.sample(q, v)
+                if self.arm_v.size:
+                    tau[self.arm_v] = self._arm_hold(q, v)
                 if self.internal_pair:  # F2 held in frame 2, its reaction on body 1 follows the relative pose
-                    q, v = p.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._reaction(cmd.F2))
+                    q, v = p.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._interface(self._reaction(cmd.F2)))
                 else:
-                    q, v = p.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2))
+                    q, v = p.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2), self._interface(None))
                 if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
                     status, divergence = "diverged", "the state is no longer finite"
                     break
@@ -170,12 +208,18 @@ class FormationSimulation:
                     print(f"\r  simulating: t = {t:8.2f} s of {spec.duration:g} s", end="", file=sys.stderr, flush=True)
         except KeyboardInterrupt:
             status = "interrupted"
+        except CaptureMissed as exc:
+            status, divergence = "capture_missed", str(exc)
         if self.progress:
             print(file=sys.stderr, flush=True)
         wall = time.perf_counter() - wall0
         trace = {key: np.asarray(val) for key, val in rows.items()}
         t_end = float(trace["t"][-1]) if "t" in trace else 0.0
-        return FormationResult(status, t_end, k, trace, wall, divergence)
+        result = FormationResult(status, t_end, k, trace, wall, divergence)
+        self.final_q, self.final_v = q, v
+        if self.capture is not None:
+            result.capture = self.capture.metrics(q, v, trace["t"], trace["H2_world"])
+        return result
 
     def _sample(self, rows: dict, t: float, q, v, cmd) -> None:
         """Append one sample to the trace and, with a recorder, to the MCAP file."""
@@ -185,11 +229,13 @@ class FormationSimulation:
         T_L, T_E = dec.energies(V_L, V_E)
         g1, g2 = b1.pose, b2.pose
         H_world = p.momentum_world(q, v)
+        M = p.mass_matrix(q)
+        h2 = M[p.bodies[1].base_v] @ v  # body 2's momentum about its base origin, base frame
         sample = {
             "t": t, "p1": g1.translation.copy(), "q1": pin.Quaternion(g1.rotation).coeffs().copy(),
             "p2": g2.translation.copy(), "q2": pin.Quaternion(g2.rotation).coeffs().copy(),
             "V1": p.base_twist(v, 0), "V2": p.base_twist(v, 1), "V_L": V_L, "V_E": V_E,
-            "H_world": H_world, "H_locked": dec.M_L @ V_L, "H_shape": dec.M_E @ V_E,
+            "H_world": H_world, "H2_world": g2.dualAction @ h2, "H_locked": dec.M_L @ V_L, "H_shape": dec.M_E @ V_E,
             "T_L": T_L, "T_E": T_E, "T": p.kinetic_energy(q, v), "W": cmd.lyapunov,
             "shape_position": cmd.shape_error.position if cmd.shape_error else np.full(3, np.nan),
             "shape_angle": cmd.shape_error.angle if cmd.shape_error else math.nan,

@@ -89,7 +89,7 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
     results = ResultsDir(out_dir)
     with results.writing(loaded.mission.name, loaded.path):
         mcap_path = Path(mcap_path) if mcap_path else results.file("simulation.mcap")
-        sim = FormationSimulation(loaded.mission, servicer, client, None, progress)
+        sim = FormationSimulation(loaded.mission, servicer, client, None, progress, loaded.source.locate)
         urdf = pair_urdf([(b.name, b.system.urdf_text, root_link(b.system)) for b in sim.plant.bodies])
         rec = McapRecorder(mcap_path, mission_text=loaded.text, mission_name=loaded.mission.name,
                            model_summary={f"{b.name}.{k}": v for b in sim.plant.bodies
@@ -101,7 +101,8 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
         try:
             with rec:
                 result = sim.run()
-                rec.finish(result.status, {"reason": result.divergence} if result.divergence else None)
+                rec.finish("failed" if result.status == "capture_missed" else result.status,
+                           {"reason": result.divergence} if result.divergence else None)
         except KeyboardInterrupt:
             if result is None:
                 raise
@@ -112,6 +113,8 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
             "formation": {"master": sim.names[0], "other": sim.names[1], "relative_motion": RELATIVE_MOTION},
             **formation_metrics(result.trace, spec, sim.names, result.wall_s, result.steps),
         }
+        if result.capture is not None:
+            section["capture"] = result.capture
         write_text_atomic(results.file(RELATIVE_MOTION), _relative_motion_csv(result.trace))
         write_text_atomic(results.file(TRACE), _trace_csv(result.trace))
         plots = plot_formation(result.trace, spec, sim.names, results.path)
@@ -128,6 +131,9 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
     if result.status == "interrupted":
         print(f"interrupted at t = {result.t_end:.6g} s: what ran is in {results.path}/", file=sys.stderr, flush=True)
         raise KeyboardInterrupt
+    if result.status == "capture_missed":
+        raise NumericalError(f"{result.divergence}. The run stopped there; what ran is in {mcap_path} and "
+                             f"{results.file('results.json')}")
     if result.status == "diverged":
         raise NumericalError(f"the two-spacecraft simulation diverged at t = {result.t_end:.4g} s: {result.divergence}. "
                              f"What ran is in {mcap_path} and {results.file('results.json')}; reduce dt or the gains")
