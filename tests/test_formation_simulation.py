@@ -37,7 +37,7 @@ def _W_rate_identity(sim, q, v):
     """(dW/dt by a central difference of the plant under the law's inputs at (q, v), the law's closed form
     −V_LᵀK_LV_L − V_EᵀK_EV_E − K_w|θ̇|²)."""
     p = sim.plant
-    dec, b1, b2 = sim.body_states(q, v)
+    dec, b1, b2, _ = sim.body_states(q, v)
     cmd = sim.law(dec, b1, b2)
     assert not cmd.saturated
     tau = np.zeros(p.model.nv)
@@ -47,7 +47,7 @@ def _W_rate_identity(sim, q, v):
     Ws = []
     for dt in (h, -h):
         qn, vn = p.step(q, v, dt, tau, (cmd.F1, cmd.F2))
-        d, c1, c2 = sim.body_states(qn, vn)
+        d, c1, c2, _ = sim.body_states(qn, vn)
         Ws.append(sim.law(d, c1, c2).lyapunov)
     V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
     law = sim.law
@@ -85,7 +85,7 @@ def test_kinetic_energy_split_equals_the_plant_energy():
     """T = ½V_LᵀM_LV_L + ½V_EᵀM_EV_E + Σ½θ̇ᵀM_θθ̇ (Vicariotto 2023 §5.3) equals Pinocchio's kinetic energy."""
     sim = _simulation(load_mission(S4))
     q, v = _perturbed_state(sim, 5)
-    dec, b1, b2 = sim.body_states(q, v)
+    dec, b1, b2, _ = sim.body_states(q, v)
     T_L, T_E = dec.energies(*dec.locked_shape(b1.xi, b2.xi))
     T_w = sum(0.5 * b.wheel_rates @ b.wheel_inertia @ b.wheel_rates for b in (b1, b2))
     assert T_L + T_E + T_w == pytest.approx(sim.plant.kinetic_energy(q, v), rel=1e-12)
@@ -93,7 +93,7 @@ def test_kinetic_energy_split_equals_the_plant_energy():
 
 def test_initial_state_has_the_requested_locked_and_shape_twists():
     sim = _simulation(load_mission(S6))
-    dec, b1, b2 = sim.body_states(sim.q, sim.v)
+    dec, b1, b2, _ = sim.body_states(sim.q, sim.v)
     V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
     assert np.allclose(V_L, [0, 0, 0, 0, 0.02, 0], atol=1e-14)
     assert np.allclose(V_E, [0.01, 0, 0, 0, 0.02, 0], atol=1e-14)

@@ -228,9 +228,11 @@ class TwoBodyPlant:
         M = self.mass_matrix(q)
         return np.linalg.solve(M[s, s], M[s] @ v)
 
-    def decomposition(self, q: np.ndarray, v: np.ndarray) -> tuple[PairDecomposition, np.ndarray, np.ndarray]:
-        """(locked/shape decomposition at g12 = g1⁻¹ g2 with the locked inertias, ξ1, ξ2)."""
-        M = self.mass_matrix(q)
+    def decomposition(self, q: np.ndarray, v: np.ndarray,
+                      M: np.ndarray | None = None) -> tuple[PairDecomposition, np.ndarray, np.ndarray]:
+        """(locked/shape decomposition at g12 = g1⁻¹ g2 with the locked inertias, ξ1, ξ2); ``M``: the mass matrix
+        at q if the caller has it."""
+        M = self.mass_matrix(q) if M is None else M
         s1, s2 = self.base_blocks
         dec = decompose(M[s1, s1], M[s2, s2], self.base_pose(q, 0).inverse() * self.base_pose(q, 1))
         return dec, np.linalg.solve(M[s1, s1], M[s1] @ v), np.linalg.solve(M[s2, s2], M[s2] @ v)

@@ -15,21 +15,22 @@ _MOMENTUM = ("px", "py", "pz", "kx", "ky", "kz")
 
 
 def _fields(names, x) -> dict:
-    return {n: float(x[i]) for i, n in enumerate(names)}
+    return {n: x[..., i] for i, n in enumerate(names)}
 
 
 def formation_topics(names: tuple[str, str], s: dict) -> dict[str, dict]:
-    """topic → {field: value} of one sample ``s``; ``names`` = (master, other)."""
+    """topic → {field: value} of samples ``s`` (``FormationSimulation._sample``'s arrays with a leading time axis,
+    what ``McapRecorder.write_block`` takes); ``names`` = (master, other)."""
+    pos = s["shape_position"]
     out = {
         "/locked/twist": _fields(_TWIST, s["V_L"]),
         "/shape/twist": _fields(_TWIST, s["V_E"]),
         "/momentum/total": _fields(_MOMENTUM, s["H_world"]),
         "/momentum/locked": _fields(_MOMENTUM, s["H_locked"]),
         "/momentum/relative": _fields(_MOMENTUM, s["H_shape"]),
-        "/energy": {"locked": float(s["T_L"]), "shape": float(s["T_E"]), "wheels": float(s["T"] - s["T_L"] - s["T_E"]),
-                    "total": float(s["T"]), "lyapunov": float(s["W"])},
-        "/shape/error": {"x": float(s["shape_position"][0]), "y": float(s["shape_position"][1]),
-                         "z": float(s["shape_position"][2]), "angle_deg": float(np.degrees(s["shape_angle"]))},
+        "/energy": {"locked": s["T_L"], "shape": s["T_E"], "wheels": s["T"] - s["T_L"] - s["T_E"], "total": s["T"],
+                    "lyapunov": s["W"]},
+        "/shape/error": {"x": pos[..., 0], "y": pos[..., 1], "z": pos[..., 2], "angle_deg": np.degrees(s["shape_angle"])},
         "/locked/wrench": _fields(_WRENCH, s["F_L"]),
         "/shape/wrench": _fields(_WRENCH, s["F_E"]),
     }
@@ -38,9 +39,9 @@ def formation_topics(names: tuple[str, str], s: dict) -> dict[str, dict]:
         out[f"/{name}/twist"] = _fields(_TWIST, s["V" + k])
         out[f"/{name}/position"] = _fields(("x", "y", "z"), s["p" + k])
         out[f"/{name}/wrench"] = _fields(_WRENCH, s["F" + k])
-        if len(s["wheels" + k]):
-            out[f"/{name}/wheels/speed"] = {"rate": np.asarray(s["wheels" + k], float)}
-            out[f"/{name}/wheels/torque"] = {"torque": np.asarray(s["tau_w" + k], float)}
+        if s["wheels" + k].shape[-1]:
+            out[f"/{name}/wheels/speed"] = {"rate": s["wheels" + k]}
+            out[f"/{name}/wheels/torque"] = {"torque": s["tau_w" + k]}
     return out
 
 

@@ -20,6 +20,8 @@ from sms_cli.formation.capture_phase import CaptureMissed
 from sms_cli.formation.laws import BodyState, RelativeLaw
 from sms_cli.formation.schema import SERVICER
 
+RECORD_BLOCK = 256  # samples per recorded block
+
 
 @dataclass
 class FormationResult:
@@ -98,27 +100,29 @@ class FormationSimulation:
             v[body.base_v] = xi[i] - connection @ v[body.joints_v]  # V_i = ξ_i − Λ_i θ̇_i
         return q, v
 
-    def _connection(self, q, i):
+    def _connection(self, q, i, M=None):
         """Λ_i = M_bb⁻¹ M_bθ (6 × internal joints of body i) and the wheels' shape inertia (Schur complement)."""
         p = self.plant
-        M = p.mass_matrix(q)
+        M = p.mass_matrix(q) if M is None else M
         b, w = p.bodies[i].base_v, p.bodies[i].joints_v
         Mbw = M[b, w]
         Lam = np.linalg.solve(M[b, b], Mbw)
         return Lam, M[w, w] - Mbw.T @ Lam
 
     def body_states(self, q, v):
-        """(PairDecomposition, BodyState of body 1, of body 2) on the wheels (arm joints, if any, are held)."""
+        """(PairDecomposition, BodyState of body 1, of body 2, mass matrix) at (q, v); the BodyStates carry the
+        wheels' part of the connection (arm joints, if any, are the arm law's)."""
         p = self.plant
-        dec, xi1, xi2 = p.decomposition(q, v)
+        M = p.mass_matrix(q)
+        dec, xi1, xi2 = p.decomposition(q, v, M)
         out = []
         for i, xi in enumerate((xi1, xi2)):
             body = p.bodies[i]
-            Lam, Mth = self._connection(q, i)
+            Lam, Mth = self._connection(q, i, M)
             wsel = body.wheels_v - body.joints_v.start  # the wheels among the body's joints
             out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
                                  Mth[np.ix_(wsel, wsel)]))
-        return dec, out[0], out[1]
+        return dec, out[0], out[1], M
 
     @property
     def internal_pair(self) -> bool:
@@ -173,6 +177,7 @@ class FormationSimulation:
         per_sample = max(1, int(round((1.0 / spec.record_rate) / dt)))
         q, v = self.q, self.v
         rows: dict[str, list] = {}
+        self._recorded = 0
         tau = np.zeros(p.model.nv)
         cmd = None
         status, divergence, k = "completed", "", 0
@@ -180,14 +185,15 @@ class FormationSimulation:
         try:
             for k in range(n_steps + 1):
                 t = k * dt
-                if k % per_control == 0 or cmd is None:
-                    dec, b1, b2 = self.body_states(q, v)
-                    cmd = self.law(dec, b1, b2)
+                control, sample = k % per_control == 0, k % per_sample == 0 or k == n_steps
+                states = self.body_states(q, v) if control or sample else None
+                if control:
+                    cmd = self.law(*states[:3])
                     tau[:] = 0.0
                     tau[p.bodies[0].wheels_v] = cmd.tau_w1
                     tau[p.bodies[1].wheels_v] = cmd.tau_w2
-                if k % per_sample == 0 or k == n_steps:
-                    self._sample(rows, t, q, v, cmd)
+                if sample:
+                    self._sample(rows, t, q, v, cmd, states)
                 if k == n_steps:
                     break
                 P1, P2 = self._push_wrenches(t)
@@ -206,14 +212,20 @@ class FormationSimulation:
                     break
                 if self.progress and k % 500 == 0:
                     print(f"\r  simulating: t = {t:8.2f} s of {spec.duration:g} s", end="", file=sys.stderr, flush=True)
+            self._flush(rows)
         except KeyboardInterrupt:
             status = "interrupted"
         except CaptureMissed as exc:
             status, divergence = "capture_missed", str(exc)
+        if status != "completed":
+            try:
+                self._flush(rows)
+            except KeyboardInterrupt:  # a second signal: the blocks already written stay
+                pass
         if self.progress:
             print(file=sys.stderr, flush=True)
         wall = time.perf_counter() - wall0
-        trace = {key: np.asarray(val) for key, val in rows.items()}
+        trace = {key: np.asarray(val) for key, val in rows.items() if key != "_tf"}
         t_end = float(trace["t"][-1]) if "t" in trace else 0.0
         result = FormationResult(status, t_end, k, trace, wall, divergence)
         self.final_q, self.final_v = q, v
@@ -221,15 +233,14 @@ class FormationSimulation:
             result.capture = self.capture.metrics(q, v, trace["t"], trace["H2_world"])
         return result
 
-    def _sample(self, rows: dict, t: float, q, v, cmd) -> None:
-        """Append one sample to the trace and, with a recorder, to the MCAP file."""
+    def _sample(self, rows: dict, t: float, q, v, cmd, states) -> None:
+        """Append one sample to the trace and, with a recorder, to the MCAP file; ``states``: ``body_states(q, v)``."""
         p = self.plant
-        dec, b1, b2 = self.body_states(q, v)
+        dec, b1, b2, M = states
         V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
         T_L, T_E = dec.energies(V_L, V_E)
         g1, g2 = b1.pose, b2.pose
         H_world = p.momentum_world(q, v)
-        M = p.mass_matrix(q)
         h2 = M[p.bodies[1].base_v] @ v  # body 2's momentum about its base origin, base frame
         sample = {
             "t": t, "p1": g1.translation.copy(), "q1": pin.Quaternion(g1.rotation).coeffs().copy(),
@@ -248,7 +259,17 @@ class FormationSimulation:
         for key, val in sample.items():
             rows.setdefault(key, []).append(val)
         if self.recorder is not None:
-            from sms_cli.formation.recording import formation_topics
+            rows.setdefault("_tf", []).append(self.links.world_poses(q))
+            if len(rows["t"]) - self._recorded >= RECORD_BLOCK:
+                self._flush(rows)
 
-            self.recorder.write_step(t, transforms=self.links.world_poses(q), scalars=formation_topics(self.names, sample),
-                                     force=True)
+    def _flush(self, rows: dict) -> None:
+        """Record the samples not yet recorded, in one block (a killed run keeps every block written)."""
+        from sms_cli.formation.recording import formation_topics
+
+        if self.recorder is None or len(rows.get("t", ())) == self._recorded:
+            return
+        a, b = self._recorded, len(rows["t"])
+        block = {key: np.asarray(val[a:b]) for key, val in rows.items()}
+        self._recorded = b
+        self.recorder.write_block(block["t"], transforms=block["_tf"], scalars=formation_topics(self.names, block))
