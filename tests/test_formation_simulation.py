@@ -54,6 +54,9 @@ def _W_rate_identity(sim, q, v):
     predicted = (-(V_L @ (law.locked.kd * V_L) if law.locked.controlled else 0.0)
                  - (V_E @ (law.shape.kd * V_E) if law.shape.controlled else 0.0)
                  - law.wheel_damping * (b1.wheel_rates @ b1.wheel_rates + b2.wheel_rates @ b2.wheel_rates))
+    if law.hierarchical:  # the attitude springs act through the wheels only: their power on V_L, V_E remains
+        rot = lambda e: np.concatenate([np.zeros(3), e.grad[3:]])  # noqa: E731
+        predicted += V_L @ rot(cmd.locked_error) + V_E @ (rot(cmd.shape_error) - dec.A_star.T @ rot(cmd.locked_error))
     return (Ws[0] - Ws[1]) / (2 * h), predicted
 
 
@@ -79,6 +82,28 @@ def test_lyapunov_rate_equals_the_dissipation_of_the_free_flying_law(seed):
     measured, predicted = _W_rate_identity(sim, q, v)
     assert predicted < 0
     assert measured == pytest.approx(predicted, rel=1e-5, abs=1e-12)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_lyapunov_rate_of_the_hierarchical_law(seed, tmp_path):
+    """The hierarchical law (thrusters without the attitude springs): Ẇ = dissipation + the attitude springs' power
+    on the locked and shape twists, exactly."""
+    sim = _simulation(_variant(S4, "formation: {relative_law: hierarchical}\n", tmp_path))
+    sim.law.wheel_damping = 1e-3
+    q, v = _perturbed_state(sim, seed)
+    measured, predicted = _W_rate_identity(sim, q, v)
+    assert measured == pytest.approx(predicted, rel=1e-5, abs=1e-12)
+
+
+def test_hierarchical_law_turns_the_relative_attitude_with_the_wheels(tmp_path):
+    """S6 under the hierarchical law with the wheels' attitude gain (kp_angular 3000 N m/rad: the wheels act through
+    Λ ≈ 1.3e-4): the relative pose still converges, and the wheels did the turning."""
+    loaded = _variant(S6, "formation: {relative_law: hierarchical, pushes: [], duration: 200 s, "
+                          "shape: {kp_angular: [3000, 3000, 3000]}}\n", tmp_path)
+    result = _simulation(loaded).run()
+    tr = result.trace
+    assert np.degrees(tr["shape_angle"][-1]) < 0.05 and np.linalg.norm(tr["shape_position"][-1]) < 2e-3
+    assert np.max(np.abs(tr["wheels1"])) > 1.0 and np.max(np.abs(tr["tau_w1"])) > 1e-3
 
 
 def test_kinetic_energy_split_equals_the_plant_energy():

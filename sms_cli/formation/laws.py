@@ -33,6 +33,12 @@ total momentum conserved) or one of them (then F_L ≠ 0 and the locked system i
 The free-floating law (5.10) applies no base wrench: the same wheel torques with F = 0. It is a Lyapunov law
 when each body's momentum is zero (then V_L = V_E = 0 for ever); the thesis's printed (5.10) drops the Λᵀ
 factors (inertia shaping, notes §4.3); this is the unshaped form.
+The hierarchical law (§5.4, L1046-L1056; §4.2.4 for one spacecraft) gives the thrusters the same wrenches without
+the rotational potentials (the γ terms: they keep the translation springs and damp every momentum) and leaves the
+attitude springs to the wheels, whose torques keep the full compensation above; then
+Ẇ = −V_LᵀK_LV_L − V_EᵀK_EV_E − K_w|θ̇|² + V_Lᵀ[0; γ_L] + V_Eᵀ([0; γ_E] − A*ᵀ[0; γ_L]): the attitude terms act
+through the wheels once the thrusters have taken the momentum out (a task hierarchy, not a strict Lyapunov law;
+the wheels' authority scales with Λ, so the attitude gains are those of the free-floating law).
 Wheel torques are clipped to each wheel's limit (then Ẇ ≤ 0 is no longer guaranteed; the run counts it).
 """
 
@@ -124,7 +130,8 @@ class RelativeLaw:
 
     def __init__(self, spec, g1_0: pin.SE3, g12_0: pin.SE3):
         self.spec = spec
-        self.free_flying = spec.law == "free_flying"
+        self.free_flying = spec.relative_law == "free_flying"
+        self.hierarchical = spec.relative_law == "hierarchical"
         self.locked = Gains.of(spec.locked)
         self.shape = Gains.of(spec.shape)
         self.wheel_damping = float(spec.wheel_damping)
@@ -140,10 +147,14 @@ class RelativeLaw:
         eE = pose_potential(g12, self.g12_des, self.shape.kp_linear, self.shape.kp_angular) if self.shape.controlled else None
         gL = eL.grad if eL else zero
         gE = eE.grad if eE else zero
-        if self.free_flying:
+        if self.hierarchical:  # the thrusters keep the translation potentials and all damping; the wheels turn
+            gL_f, gE_f = _linear(gL), _linear(gE)
+        else:
+            gL_f, gE_f = gL, gE
+        if self.free_flying or self.hierarchical:
             C = coriolis_blocks(coriolis(dec, b1.xi, b2.xi, b2.twist - dec.Ad12_inv @ b1.twist))
-            F_L = -gL - self.locked.kd * V_L + C["C_LE"] @ V_E if eL else zero.copy()
-            F_E = -gE + dec.A_star.T @ gL - (self.shape.kd * V_E if eE else 0.0) + (C["C_EL"] @ V_L if eE else 0.0)
+            F_L = -gL_f - self.locked.kd * V_L + C["C_LE"] @ V_E if eL else zero.copy()
+            F_E = -gE_f + dec.A_star.T @ gL_f - (self.shape.kd * V_E if eE else 0.0) + (C["C_EL"] @ V_L if eE else 0.0)
             if eL or self.actuation == "both":
                 F1, F2 = dec.to_bodies(F_L, F_E)
             else:
@@ -160,6 +171,11 @@ class RelativeLaw:
         T_w = 0.5 * sum(float(b.wheel_rates @ b.wheel_inertia @ b.wheel_rates) for b in (b1, b2))
         W = T_L + T_E + T_w + (eL.U if eL else 0.0) + (eE.U if eE else 0.0)
         return Command(F1, F2, c1, c2, F_L, F_E, eL, eE, W, saturated)
+
+
+def _linear(grad: np.ndarray) -> np.ndarray:
+    """The translational part of a potential's gradient [f; 0]."""
+    return np.concatenate([grad[:3], np.zeros(3)])
 
 
 def _pose(p) -> pin.SE3:

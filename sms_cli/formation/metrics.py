@@ -51,7 +51,7 @@ def _push_metrics(i: int, push, t: np.ndarray, H: np.ndarray) -> dict:
 def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, steps: int) -> dict:
     """The run's metrics (see the module docstring)."""
     t = trace["t"]
-    out: dict = {"master": names[0], "other": names[1], "law": spec.law, "actuation": spec.actuation}
+    out: dict = {"master": names[0], "other": names[1], "law": spec.relative_law, "actuation": spec.actuation}
     pos = np.linalg.norm(trace["shape_position"], axis=1)
     ang = np.degrees(trace["shape_angle"])
     inside = (pos <= spec.settle_position) & (ang <= math.degrees(spec.settle_angle))

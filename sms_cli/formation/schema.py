@@ -145,11 +145,12 @@ class FormationSpec(StrictModel):
     duration: Time = Field(gt=0, description="simulated time (s)")
     control_rate: Frequency = Field(5.0, gt=0, description="control rate (Hz), ZOH between updates")
     record_rate: Frequency = Field(5.0, gt=0, description="MCAP and relative_motion.csv sample rate (Hz)")
-    law: Literal["free_flying", "free_floating"] = Field(
+    relative_law: Literal["free_flying", "free_floating", "hierarchical"] = Field(
         "free_flying",
         description="free_flying: wrenches on the bases (ideal thrusters) for the controlled subsystems plus the wheels' "
                     "compensation and damping (Vicariotto 2023 (5.11), passivity form); free_floating: wheels only, "
-                    "valid at zero momentum of each body (Vicariotto 2023 (5.10))")
+                    "valid at zero momentum of each body (Vicariotto 2023 (5.10)); hierarchical: the thrusters damp the "
+                    "momenta and hold the translation, the wheels turn the attitudes (Vicariotto 2023 §5.4)")
     actuation: Literal["both", "master", "other"] = Field(
         "both", description="who applies the shape wrench when the locked system is free: both (an internal, equal "
                             "and opposite pair: total momentum conserved), master or other only (the locked system then "
@@ -175,7 +176,7 @@ class FormationSpec(StrictModel):
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
             raise ValueError(f"the control period ({1 / self.control_rate:g} s) must be a whole number of plant steps "
                              f"(dt = {self.dt:g} s)")
-        if self.law == "free_floating" and "actuation" in self.model_fields_set:
+        if self.relative_law == "free_floating" and "actuation" in self.model_fields_set:
             raise ValueError("a free_floating law applies no base wrench: 'actuation' has no meaning there, remove it")
         return self
 

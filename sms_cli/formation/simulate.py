@@ -126,8 +126,10 @@ class FormationSimulation:
 
     @property
     def internal_pair(self) -> bool:
-        """The shape wrench is an internal pair (F_L = 0): free-flying law, locked system free, both bodies acting."""
-        return self.law.free_flying and not self.law.locked.controlled and self.spec.actuation == "both"
+        """The shape wrench is an internal pair (F_L = 0): free-flying or hierarchical law, locked system free, both
+        bodies acting."""
+        return ((self.law.free_flying or self.law.hierarchical) and not self.law.locked.controlled
+                and self.spec.actuation == "both")
 
     def _reaction(self, F2: np.ndarray):
         """interface(q, v) for the plant step: on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose, so
