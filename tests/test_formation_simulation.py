@@ -135,7 +135,7 @@ def test_internal_shape_pair_conserves_total_momentum(tmp_path):
 
 def test_one_sided_actuation_moves_the_locked_system(tmp_path):
     """actuation: other puts the whole shape wrench on one spacecraft: its wrench is then external to the pair."""
-    loaded = _variant(S6, "formation: {duration: 20 s, pushes: [], actuation: other}\n", tmp_path)
+    loaded = _variant(S6, "formation: {duration: 20 s, pushes: [], actuation: servicer}\n", tmp_path)  # = other
     result = _simulation(loaded).run()
     assert np.max(np.abs(result.trace["F1"])) == 0.0
     H = result.trace["H_world"]
@@ -190,6 +190,7 @@ BAD = {
     "missing client URDF": ("client: {robot: {urdf: ../robots/nope.urdf}}\n", "nope.urdf: no such file"),
     "overlapping bodies": ("client: {pose: {position: [1.0, 0, 0]}}\n", "overlap"),
     "unknown master": ("formation: {master: chaser}\n", "formation.master"),
+    "unknown actuation": ("formation: {actuation: chaser}\n", "formation.actuation"),
 }
 
 
@@ -238,6 +239,7 @@ def test_capture_keeps_momentum_and_joins_the_frames(tmp_path):
     ("formation: {capture: {at: 10 s}}\n", 3, ["capture time t = 10", "tolerance 0.05 m"]),
     ("formation: {capture: {natural_frequency: 25 Hz}}\n", 2, ["steps per period", "dt ≤"]),
     ("formation: {capture: {client_frame: grappel}}\n", 2, ["grappel", "did you mean 'grapple'"]),
+    ("formation: {initial: {bodies: {chaser: {}}}}\n", 2, ["formation.initial.bodies is 'chaser'"]),
 ])
 def test_capture_input_and_miss(extra, code, needles, tmp_path):
     path = tmp_path / "cap.yaml"

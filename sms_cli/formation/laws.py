@@ -128,14 +128,15 @@ class BodyState:
 class RelativeLaw:
     """The free-flying or free-floating relative law of the module docstring."""
 
-    def __init__(self, spec, g1_0: pin.SE3, g12_0: pin.SE3):
+    def __init__(self, spec, g1_0: pin.SE3, g12_0: pin.SE3, names: tuple[str, str] = ("master", "other")):
         self.spec = spec
         self.free_flying = spec.relative_law == "free_flying"
         self.hierarchical = spec.relative_law == "hierarchical"
         self.locked = Gains.of(spec.locked)
         self.shape = Gains.of(spec.shape)
         self.wheel_damping = float(spec.wheel_damping)
-        self.actuation = spec.actuation
+        by_name = {names[0]: "master", names[1]: "other"}
+        self.actuation = by_name.get(spec.actuation, spec.actuation)  # a spacecraft's name → its role
         self.g1_des = g1_0 * _pose(spec.locked.setpoint_offset)
         self.g12_des = g12_0 * _pose(spec.shape.setpoint_offset)
 

@@ -151,10 +151,11 @@ class FormationSpec(StrictModel):
                     "compensation and damping (Vicariotto 2023 (5.11), passivity form); free_floating: wheels only, "
                     "valid at zero momentum of each body (Vicariotto 2023 (5.10)); hierarchical: the thrusters damp the "
                     "momenta and hold the translation, the wheels turn the attitudes (Vicariotto 2023 §5.4)")
-    actuation: Literal["both", "master", "other"] = Field(
-        "both", description="who applies the shape wrench when the locked system is free: both (an internal, equal "
-                            "and opposite pair: total momentum conserved), master or other only (the locked system then "
-                            "receives the wrench that makes the other body's zero)")
+    actuation: str = Field(
+        "both", description="who applies the shape wrench when the locked system is free (Vicariotto 2023 L1068, the "
+                            "redistribution): both (an internal, equal and opposite pair: total momentum conserved), or one "
+                            "spacecraft only, by name ('servicer', the client's name) or role ('master', 'other'): the "
+                            "locked system then receives the wrench that makes the other body's zero")
     locked: SubsystemControl = Field(default_factory=SubsystemControl, description="the pair's total motion")
     shape: SubsystemControl = Field(default_factory=SubsystemControl, description="the relative motion")
     wheel_damping: RotationalDamping = Field(

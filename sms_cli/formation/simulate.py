@@ -77,7 +77,7 @@ class FormationSimulation:
         self.wheel_limits = [np.array([w.max_torque for w in b.system.wheels], float) for b in self.plant.bodies]
         self.q, self.v = self._initial_state()
         self.arm_q0 = self.q[self.arm_q].copy()
-        self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]))
+        self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]), self.names)
 
     # ---------------------------------------------------------------- state
     def _initial_state(self):
@@ -129,7 +129,7 @@ class FormationSimulation:
         """The shape wrench is an internal pair (F_L = 0): free-flying or hierarchical law, locked system free, both
         bodies acting."""
         return ((self.law.free_flying or self.law.hierarchical) and not self.law.locked.controlled
-                and self.spec.actuation == "both")
+                and self.law.actuation == "both")
 
     def _reaction(self, F2: np.ndarray):
         """interface(q, v) for the plant step: on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose, so

@@ -76,7 +76,9 @@ class Mission(StrictModel):
                                  "move one of them to another mission file")
             names = (SERVICER, self.client.name)
             for what, name in [("formation.master", self.formation.master)] + [
-                    (f"formation.pushes[{i}].body", p.body) for i, p in enumerate(self.formation.pushes)]:
+                    (f"formation.pushes[{i}].body", p.body) for i, p in enumerate(self.formation.pushes)] + [
+                    ("formation.initial.bodies", n) for n in self.formation.initial.bodies] + [
+                    ("formation.actuation", a) for a in [self.formation.actuation] if a not in ("both", "master", "other")]:
                 if name not in names:
                     raise ValueError(f"{what} is '{name}': the spacecraft are '{names[0]}' and '{names[1]}'")
         return self
