@@ -252,3 +252,21 @@ def test_capture_input_and_miss(extra, code, needles, tmp_path):
     assert "Traceback" not in r.output
     if code == 2:
         assert "cap.yaml:" in text
+
+
+def _positions(result) -> np.ndarray:
+    return np.concatenate([result.trace["p1"], result.trace["p2"]], axis=1)
+
+
+def test_decomposed_and_plain_simulations_of_a_mission_agree_to_fourth_order(tmp_path):
+    """S4 (both subsystems controlled, momentum in both) with Vicariotto 2023's HIL integrator on [V_L; V_E; θ̇] and
+    with the plain one on the absolute velocities: the same base trajectories, the difference shrinking ~16x when
+    dt halves (both are 4th order). Measured: 1.6e-12 m at dt 0.05 s, 9.6e-14 m at 0.025 s over 20 s (ratio 16);
+    at 0.0125 s round-off (5e-15 m) takes over."""
+    diffs = []
+    for dt in ("0.05 s", "0.025 s"):
+        runs = [_simulation(_variant(S4, f"formation: {{duration: 20 s, dt: {dt}, integrator: {i}}}\n", tmp_path)).run()
+                for i in ("plain", "decomposed")]
+        diffs.append(np.max(np.abs(_positions(runs[0]) - _positions(runs[1]))))
+    assert diffs[0] < 1e-9
+    assert diffs[0] / diffs[1] > 8

@@ -60,6 +60,7 @@ class FormationSimulation:
         locate = locate or (lambda path: None)
         self.capture = (CapturePhase(spec.capture, self.plant, SERVICER, mission.client.name, float(spec.dt), locate)
                         if spec.capture is not None else None)
+        self.step = self._stepper(spec.integrator)
         servicer_body = self.plant.body(SERVICER)
         self.arm_v = servicer_body.arm_v
         self.arm_q = np.array([servicer_body.q.start + 7 + (j - servicer_body.joints_v.start)
@@ -123,6 +124,21 @@ class FormationSimulation:
             out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
                                  Mth[np.ix_(wsel, wsel)]))
         return dec, out[0], out[1], M
+
+    def _stepper(self, integrator: str):
+        """step(q, v, dt, tau, base_wrenches, interface) -> (q, v) of the chosen integrator (built after every frame
+        is added to the plant)."""
+        if integrator == "plain":
+            return self.plant.step
+        from sms_cli.formation.plant import DecomposedIntegrator
+
+        decomposed = DecomposedIntegrator(self.plant)
+
+        def step(q, v, dt, tau, base_wrenches, interface=None):
+            qn, y = decomposed.step(q, decomposed.to_decomposed(q, v), dt, tau, base_wrenches, interface)
+            return qn, decomposed.to_plain(qn, y)
+
+        return step
 
     @property
     def internal_pair(self) -> bool:
@@ -206,9 +222,9 @@ class FormationSimulation:
                 if self.arm_v.size:
                     tau[self.arm_v] = self._arm_hold(q, v)
                 if self.internal_pair:  # F2 held in frame 2, its reaction on body 1 follows the relative pose
-                    q, v = p.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._interface(self._reaction(cmd.F2)))
+                    q, v = self.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._interface(self._reaction(cmd.F2)))
                 else:
-                    q, v = p.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2), self._interface(None))
+                    q, v = self.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2), self._interface(None))
                 if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
                     status, divergence = "diverged", "the state is no longer finite"
                     break

@@ -549,6 +549,21 @@ def formation_section(sim: dict[str, Any], folder: Path) -> Section:
                     [[p["body"], fmt(p["at_s"]), fmt(p["duration_s"]), ", ".join(fmt(x) for x in p["force_N"]),
                       ", ".join(fmt(x, 3) for x in p["momentum_change"]) if p.get("momentum_change") else "—"]
                      for p in pushes], [False, True, True, False, False]))
+    cap = sim.get("capture")
+    if isinstance(cap, dict) and cap.get("engaged"):
+        s.add(Table(f"Capture at {fmt(cap.get('at_s'))} s through a compliant interface "
+                    f"({fmt(cap.get('natural_frequency_hz'))} Hz, damping ratio {fmt(cap.get('damping_ratio'))})",
+                    ["quantity", "value", "unit"], [
+                        ["offset of the frames at the capture", f"{fmt(cap.get('offset_m'))} / {fmt(cap.get('offset_deg'))}",
+                         "m / deg"],
+                        ["peak interface force", fmt(cap.get("peak_force_N")), "N"],
+                        ["peak interface torque", fmt(cap.get("peak_torque_Nm")), "N m"],
+                        ["stack rate after the capture", fmt(cap.get("stack_rate_deg_s")), "deg/s"],
+                        ["impulse exchanged (linear, angular)", f"{fmt(cap.get('linear_impulse_exchanged_Ns'))}, "
+                                                                f"{fmt(cap.get('angular_impulse_exchanged_Nms'))}", "N s, N m s"],
+                        ["momentum change through the capture (linear, angular), of the exchanged impulse",
+                         f"{fmt(cap.get('linear_momentum_change_rel'))}, {fmt(cap.get('angular_momentum_change_rel'))}", "–"],
+                    ], [False, True, False]))
     tm = sim.get("timing", {})
     if tm:
         s.notes.append(f"{fmt(tm.get('us_per_step'))} µs per plant step with recording, "

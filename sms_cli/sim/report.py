@@ -72,6 +72,12 @@ def format_formation(sec: dict) -> str:
              f"locked rate   {lk['angular_rate_initial_rad_s']:.4g} -> {lk['angular_rate_final_rad_s']:.4g} rad/s",
              f"momentum drift between pushes: {c['linear_momentum_drift_between_pushes_Ns']:.3g} N s, "
              f"{c['angular_momentum_drift_between_pushes_Nms']:.3g} N m s"]
+    cap = sec.get("capture")
+    if cap and cap.get("engaged"):
+        lines.append(f"capture at {cap['at_s']:.4g} s (offset {cap['offset_m']:.3g} m, {cap['offset_deg']:.3g}°): peak "
+                     f"{cap['peak_force_N']:.3g} N, {cap['peak_torque_Nm']:.3g} N m; stack rate {cap['stack_rate_deg_s']:.3g}°/s; "
+                     f"momentum change {cap['linear_momentum_change_rel']:.2g} / {cap['angular_momentum_change_rel']:.2g} "
+                     "of the exchanged impulse")
     if tm:
         lines.append(f"timing {tm['wall_s']:.2f} s wall, {tm['us_per_step']:.1f} µs/step, "
                      f"{_f(tm.get('real_time_factor'), '.1f')}× real time")
