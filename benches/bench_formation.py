@@ -90,7 +90,7 @@ def main() -> None:
     integrator = sys.argv[sys.argv.index("--integrator") + 1] if "--integrator" in sys.argv else None
     if integrator:
         args = [a for a in args if a != integrator]
-    paths = [Path(a) for a in args] or [ROOT / "missions" / f"{m}.yaml" for m in MISSIONS]
+    paths = [Path(a).resolve() for a in args] or [ROOT / "missions" / f"{m}.yaml" for m in MISSIONS]
     print(f"two-spacecraft missions, {integrator or 'plain'} integrator, recording on; µs per plant step (CPU unless "
           "noted); RTF = simulated / elapsed time")
     print(f"{'mission':<36}{'steps':>7}{'dt':>7}{'wall':>8}{'cpu':>8}{'RTF wall':>10}{'RTF cpu':>9}"
