@@ -255,12 +255,12 @@ def test_rigid_spin_needs_no_relative_motion_and_leaves_30_deg_on_time():
 # ----------------------------------------------------------------- the command, its files and its errors
 
 MILD = Analytic(V1=[0.0, 0.0, 0.0, 0.0, SPIN, 0.0], xi=[0.001, 0.0005, -0.0005, 0.0, 0.001, 0.0],
-                g10=pin.SE3.Identity(), h0=pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.pi), np.array([1.0, 0.0, 0.0])))
+                g10=pin.SE3.Identity(), h0=pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.pi), np.array([3.0, 0.0, 0.0])))
 
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
-    """The shipped facility on a 120 s run whose mounts hold its initial geometry (1 m apart, facing)."""
+    """The shipped facility on a 120 s run whose mounts hold its initial geometry (3 m apart, facing: S6)."""
     folder = write_run(tmp_path_factory.mktemp("hil") / "run", MILD, np.linspace(0.0, 120.0, 601))
     r = run_cli("export", "hil", folder, "--facility", FACILITY, "--json")
     assert r.exit_code == 0, r.output
