@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.errors import InputError, Location, NumericalError, Problem
+from sms_cli.formation.plant import joint_forces, system_momentum  # noqa: F401  (one implementation, re-exported)
 
 STEPS_PER_PERIOD = 20  # plant steps needed per period of the interface's natural frequency
 
@@ -202,23 +203,6 @@ def interface_wrenches(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.nd
     F_b = -pin.Jlog6(g_e).T @ (gains.K @ e) - gains.D @ V_rel
     F_a = -g_ba.action.T @ F_b
     return [(fa, F_a), (fb, F_b)]
-
-
-def joint_forces(model: pin.Model, wrenches: list[tuple[int, np.ndarray]]) -> list:
-    """The ``fext`` of ``pin.aba``/``pin.rnea`` (one ``pin.Force`` per joint, in the joint's LOCAL frame) for
-    wrenches given at frames (each in the frame's LOCAL axes at its origin)."""
-    fext = [pin.Force.Zero() for _ in range(model.njoints)]
-    for fid, F in wrenches:
-        frame = model.frames[fid]
-        fext[frame.parentJoint] += frame.placement.act(pin.Force(np.asarray(F, float)))
-    return fext
-
-
-def system_momentum(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Total momentum [p; L_O] (N s, N m s) of every body, world axes, angular part about the world origin."""
-    h_g = pin.computeCentroidalMomentum(model, data, q, v)
-    p, L_g = h_g.linear, h_g.angular
-    return np.concatenate([p, L_g + np.cross(data.com[0], p)])
 
 
 def locked_twist(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -90,6 +90,22 @@ def _frame_map(model: pin.Model, first: int) -> dict[str, int]:
     return out
 
 
+def joint_forces(model: pin.Model, wrenches: Sequence[tuple[int, np.ndarray]]) -> list:
+    """The ``fext`` of ``pin.aba``/``pin.rnea`` (one ``pin.Force`` per joint, in the joint's LOCAL frame) for
+    wrenches [f; τ] given at frames (each in the frame's LOCAL axes at its origin)."""
+    fext = [pin.Force.Zero() for _ in range(model.njoints)]
+    for fid, F in wrenches:
+        frame = model.frames[fid]
+        fext[frame.parentJoint] += frame.placement.act(pin.Force(np.asarray(F, float)))
+    return fext
+
+
+def system_momentum(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Total momentum [p; L_O] (N s, N m s) of every body, world axes, angular part about the world origin."""
+    h_g = pin.computeCentroidalMomentum(model, data, q, v)
+    return np.concatenate([h_g.linear, h_g.angular + np.cross(data.com[0], h_g.linear)])
+
+
 def _full(M: np.ndarray) -> np.ndarray:
     """Symmetric matrix from CRBA output (Pinocchio fills at least the upper triangle)."""
     return np.triu(M) + np.triu(M, 1).T
@@ -248,11 +264,7 @@ class TwoBodyPlant:
             tau[s] = 0.0 if F is None else F
         if not frame_wrenches:
             return pin.aba(self.model, self.data, q, v, tau).copy()
-        fext = [pin.Force.Zero() for _ in range(self.model.njoints)]
-        for fid, w in frame_wrenches:
-            fr = self.model.frames[fid]
-            fext[fr.parentJoint] += fr.placement.act(pin.Force(np.asarray(w, dtype=float)))
-        return pin.aba(self.model, self.data, q, v, tau, fext).copy()
+        return pin.aba(self.model, self.data, q, v, tau, joint_forces(self.model, frame_wrenches)).copy()
 
     def step(self, q: np.ndarray, v: np.ndarray, dt: float, tau: np.ndarray, base_wrenches: Wrenches = (None, None),
              interface: Interface | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -266,9 +278,7 @@ class TwoBodyPlant:
     # ------------------------------------------------------------------ invariants
     def momentum_world(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """[linear momentum (kg m/s); angular momentum about the world origin (kg m²/s)], world axes (6)."""
-        hg = pin.computeCentroidalMomentum(self.model, self.data, q, v)
-        c = self.data.com[0]
-        return np.concatenate([hg.linear, hg.angular + np.cross(c, hg.linear)])
+        return system_momentum(self.model, self.data, q, v)
 
     def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> float:
         """½ vᵀ M(q) v (J)."""

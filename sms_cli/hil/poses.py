@@ -25,22 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sms_cli.sim.attitude_math import quat_conj as qconj
+from sms_cli.sim.attitude_math import quat_mul as qmul
+
 # ----------------------------------------------------------------- quaternion/pose algebra (vectorised)
-
-
-def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a ⊗ b of quaternions [x, y, z, w] (…, 4)."""
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
-
-
-def qconj(q: np.ndarray) -> np.ndarray:
-    """Conjugate (the inverse of a unit quaternion)."""
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
 
 
 def qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
