@@ -311,12 +311,15 @@ def simulate_cmd(
     progress: Annotated[Optional[bool], typer.Option("--progress/--no-progress", help="progress bar (default: on a terminal)")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the metrics as JSON")] = False,
 ) -> None:
-    """Nonlinear simulation of the mission's phases; records simulation.mcap (Foxglove) and metrics.
+    """Nonlinear simulation of the mission's phases; records simulation.mcap (Foxglove) and metrics. A mission
+    with client: and formation: sections simulates two spacecraft (locked/shape decomposition, relative laws,
+    capture; Vicariotto 2023 ch. 5) and also writes relative_motion.csv for sms export hil.
 
     Example:
 
     \b
         sms simulate missions/caldera_s1_slew.yaml -o results/caldera_s1_slew
+        sms simulate missions/vicariotto_s6_relative_hil.yaml -o results/s6
     """
     if out is not None and out.suffix == ".mcap":  # the old spelling of --recording
         if recording is not None:

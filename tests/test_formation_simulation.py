@@ -280,3 +280,20 @@ def test_shape_reaches_its_setpoint_while_the_locked_system_spins(tmp_path):
     tr = result.trace
     assert np.linalg.norm(tr["shape_position"][-1]) < 1e-3
     assert np.min(np.linalg.norm(tr["V_L"][:, 3:], axis=1)) > 0.019  # the locked spin was there all along
+
+
+def test_recorded_robot_description_is_one_valid_urdf_with_both_spacecraft():
+    """The URDF the recording carries for Foxglove's 3D panel: both robots, prefixed, each hung from 'world' by a
+    floating joint; it loads in Pinocchio, and every link it names is a frame the recording's /tf moves."""
+    import pinocchio as pin
+
+    from sms_cli.formation.stage import root_link
+    from sms_cli.formation.urdf_pair import pair_urdf
+
+    sim = _simulation(load_mission(CAPTURE))
+    text = pair_urdf([(b.name, b.system.urdf_text, root_link(b.system)) for b in sim.plant.bodies])
+    model = pin.buildModelFromXML(text)
+    links = {f.name for f in model.frames if f.type == pin.FrameType.BODY}
+    assert {"servicer/base_link", "servicer/ee_link", "client/bus", "client/grapple"} <= links
+    assert [model.joints[j].shortname() for j in range(1, model.njoints)].count("JointModelFreeFlyer") == 2
+    assert links - {"world", "universe"} <= set(sim.links.names)
