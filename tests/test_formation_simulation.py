@@ -297,3 +297,32 @@ def test_recorded_robot_description_is_one_valid_urdf_with_both_spacecraft():
     assert {"servicer/base_link", "servicer/ee_link", "client/bus", "client/grapple"} <= links
     assert [model.joints[j].shortname() for j in range(1, model.njoints)].count("JointModelFreeFlyer") == 2
     assert links - {"world", "universe"} <= set(sim.links.names)
+
+
+def test_an_interrupted_two_spacecraft_run_keeps_what_ran(tmp_path, monkeypatch):
+    """Ctrl-C at t ≈ 100 s: exit through KeyboardInterrupt after writing the section (status interrupted, the time
+    reached), the CSV files and a finished, readable recording of the samples taken."""
+    from mcap.reader import make_reader
+
+    from sms_cli.formation import plant as plant_module
+    from sms_cli.formation.stage import record_formation
+
+    real_step, calls = plant_module.TwoBodyPlant.step, {"n": 0}
+
+    def step(self, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 2000:  # t = 100 s at dt 0.05 s
+            raise KeyboardInterrupt
+        return real_step(self, *a, **k)
+
+    monkeypatch.setattr(plant_module.TwoBodyPlant, "step", step)
+    with pytest.raises(KeyboardInterrupt):
+        record_formation(load_mission(S6), tmp_path, progress=False)
+    sim = json.loads((tmp_path / "results.json").read_text())["simulate"]
+    assert sim["status"] == "interrupted" and sim["t_end_s"] == pytest.approx(99.95, abs=0.2)
+    rows = (tmp_path / "relative_motion.csv").read_text().splitlines()
+    assert len(rows) - 1 == 500 or len(rows) - 1 == 501
+    with open(tmp_path / "simulation.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    tf = next(c.id for c in summary.channels.values() if c.topic == "/tf")
+    assert summary.statistics.channel_message_counts[tf] == len(rows) - 1
