@@ -26,7 +26,8 @@ from sms_cli.mission.load import load_mission, load_mission_text  # noqa: E402
 from sms_cli.recording.recorder import McapRecorder  # noqa: E402
 from sms_cli.sim.stage import versions  # noqa: E402
 
-MISSIONS = ["vicariotto_s6_relative_hil", "vicariotto_s4_relative_free_flying", "caldera_capture_tumbling"]
+MISSIONS = ["vicariotto_s6_relative_hil", "vicariotto_s6_thrusters", "vicariotto_s4_relative_free_flying",
+            "caldera_capture_tumbling"]
 TARGET = {"vicariotto_s6_relative_hil": 200.0}  # the real-time target
 
 

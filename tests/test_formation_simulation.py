@@ -326,3 +326,41 @@ def test_an_interrupted_two_spacecraft_run_keeps_what_ran(tmp_path, monkeypatch)
         summary = make_reader(f).get_summary()
     tf = next(c.id for c in summary.channels.values() if c.topic == "/tf")
     assert summary.statistics.channel_message_counts[tf] == len(rows) - 1
+
+
+S6_THRUSTERS = ROOT / "missions" / "vicariotto_s6_thrusters.yaml"
+
+
+def test_client_thrusters_burn_what_they_deliver_and_the_servicer_stays_passive(tmp_path, monkeypatch):
+    """S6 with the client's thruster cube (actuation: client): the propellant used equals the delivered impulse of
+    each thruster over F/(Isp g0) (the rocket flow, Table 3.1), the servicer feels no wrench, and the client's
+    delivered wrench differs from the commanded one (the firing pattern's quantisation and minimum on-time)."""
+    from sms_cli.thrusters import drive as drive_module
+
+    import pinocchio as pin
+
+    impulse, world_force = {}, []
+    real = drive_module.step_drives
+
+    def counting(drives, s, t, dt, advance):
+        R1 = pin.XYZQUATToSE3(s[0][:7]).rotation  # the client (body 1) at the step's start
+        out = real(drives, s, t, dt, advance)
+        for d in drives:
+            impulse[id(d)] = impulse.get(id(d), 0.0) + d.thrust_step * dt
+            world_force.append(R1 @ (d.B[:3] @ d.thrust_step) * dt)
+        return out
+
+    monkeypatch.setattr(drive_module, "step_drives", counting)
+    sim = _simulation(_variant(S6_THRUSTERS, "formation: {duration: 20 s, pushes: [], facility: null}\n", tmp_path))
+    result = sim.run()
+    (i, d), = sim.drives
+    assert sim.plant.bodies[i].name == "client"
+    expected = float(np.sum(impulse[id(d)] * d.ts.mass_flow / d.ts.max_force))
+    assert d.used > 0.01 and d.used == pytest.approx(expected, rel=1e-12)
+    assert np.all(result.trace["D2"] == 0.0) and np.all(result.trace["F2"] == 0.0)
+    assert np.max(np.abs(result.trace["D1"] - result.trace["F1"])) > 0.1
+    # the firings reach the plant: the pair's linear momentum changes by their impulse, world frame, to 2 % (the sum
+    # takes the client's attitude at each step's start, and the ~1 kg of propellant burnt leaves with its momentum)
+    H = result.trace["H_world"]
+    expected_dp = np.sum(world_force, axis=0)
+    assert np.linalg.norm(H[-1, :3] - H[0, :3] - expected_dp) < 0.02 * np.linalg.norm(expected_dp)

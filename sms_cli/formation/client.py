@@ -27,12 +27,12 @@ class _ClientSource(SourceMap):
 
 
 def client_view(loaded: LoadedMission) -> LoadedMission:
-    """A mission holding only the client's robot and wheels (for ``compile_system``), whose errors and
+    """A mission holding only the client's robot, wheels and thrusters (for ``compile_system``), whose errors and
     relative paths refer to the ``client:`` section of ``loaded``."""
     from sms_cli.mission.schema import Mission
 
     c = loaded.mission.client
-    mission = Mission(name=f"{loaded.mission.name}.{c.name}", robot=c.robot, wheels=c.wheels)
+    mission = Mission(name=f"{loaded.mission.name}.{c.name}", robot=c.robot, wheels=c.wheels, thrusters=c.thrusters)
     source = _ClientSource(file=loaded.source.file, text=loaded.source.text, outer=loaded.source)
     return LoadedMission(mission, loaded.path, source, loaded.text)
 

@@ -100,6 +100,11 @@ def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, 
         w = trace[f"wheels{i + 1}"]
         if w.shape[1]:
             out[f"wheels_{name}"] = {"speed_peak_rad_s": float(np.max(np.abs(w))), "speed_peak_rpm": float(np.max(np.abs(w)) * RPM)}
+        if trace[f"propellant{i + 1}"][-1] > 0:
+            F, D = trace[f"F{i + 1}"], trace[f"D{i + 1}"]
+            out[f"thrusters_{name}"] = {"propellant_used_kg": float(trace[f"propellant{i + 1}"][-1]),
+                                        "force_residual_peak_N": float(np.max(np.linalg.norm(F[:, :3] - D[:, :3], axis=1))),
+                                        "torque_residual_peak_Nm": float(np.max(np.linalg.norm(F[:, 3:] - D[:, 3:], axis=1)))}
     dt_sample = float(t[1] - t[0]) if t.size > 1 else 0.0
     out["saturation_time_s"] = float(np.count_nonzero(trace["saturated"]) * dt_sample)
     out["timing"] = {"steps": steps, "wall_s": wall_s, "us_per_step": 1e6 * wall_s / max(steps, 1),

@@ -39,6 +39,7 @@ def formation_topics(names: tuple[str, str], s: dict) -> dict[str, dict]:
         out[f"/{name}/twist"] = _fields(_TWIST, s["V" + k])
         out[f"/{name}/position"] = _fields(("x", "y", "z"), s["p" + k])
         out[f"/{name}/wrench"] = _fields(_WRENCH, s["F" + k])
+        out[f"/{name}/wrench/delivered"] = _fields(_WRENCH, s["D" + k])
         if s["wheels" + k].shape[-1]:
             out[f"/{name}/wheels/speed"] = {"rate": s["wheels" + k]}
             out[f"/{name}/wheels/torque"] = {"torque": s["tau_w" + k]}

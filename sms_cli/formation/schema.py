@@ -14,6 +14,7 @@ from pydantic import Field, model_validator
 
 from sms_cli.mission.base import Position3, Rate3, Rotation3, StrictModel, vector
 from sms_cli.mission.system import RobotSpec, WheelsSpec
+from sms_cli.thrusters.schema import ThrustersSpec
 from sms_cli.mission.units import (
     Force,
     Frequency,
@@ -52,6 +53,10 @@ class ClientSpec(StrictModel):
                       description="name used in topics, reports and formation.master (not 'servicer')")
     robot: RobotSpec = Field(description="the client's URDF (its root link is its free-flying base)")
     wheels: WheelsSpec = Field(default_factory=WheelsSpec, description="the client's reaction wheels, as the servicer's")
+    thrusters: ThrustersSpec | None = Field(
+        None, description="the client's on/off thrusters, as the servicer's top-level thrusters: (Vicariotto 2023 "
+                          "Table 3.1); in a formation each spacecraft with a thruster set realises its base wrench by "
+                          "allocation, on/off firing and propellant, one without by an ideal wrench source")
     pose: PoseSpec = Field(description="the client's base frame in the servicer's base frame at t = 0")
 
     @model_validator(mode="after")

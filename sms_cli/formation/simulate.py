@@ -61,6 +61,7 @@ class FormationSimulation:
         self.capture = (CapturePhase(spec.capture, self.plant, SERVICER, mission.client.name, float(spec.dt), locate)
                         if spec.capture is not None else None)
         self.step = self._stepper(spec.integrator)
+        self.drives = self._thruster_drives(locate)
         servicer_body = self.plant.body(SERVICER)
         self.arm_v = servicer_body.arm_v
         self.arm_q = np.array([servicer_body.q.start + 7 + (j - servicer_body.joints_v.start)
@@ -125,6 +126,30 @@ class FormationSimulation:
                                  Mth[np.ix_(wsel, wsel)]))
         return dec, out[0], out[1], M
 
+    def _thruster_drives(self, locate) -> list:
+        """(body index, ThrusterDrive) of each spacecraft with a thruster set, its tank on the combined model's base
+        body; the control period must be a whole number of its firing cycles (one allocation per tick)."""
+        from types import SimpleNamespace
+
+        from sms_cli.errors import InputError, Problem
+        from sms_cli.thrusters.drive import ThrusterDrive
+
+        drives = []
+        period = 1.0 / float(self.spec.control_rate)
+        for i, body in enumerate(self.plant.bodies):
+            ts = body.system.thrusters
+            if ts is None:
+                continue
+            k = period / ts.firing_cycle
+            if abs(k - round(k)) > 1e-9 * max(k, 1) or round(k) < 1:
+                raise InputError(problems=[Problem(
+                    f"the control period ({period:g} s) is not a whole number of {body.name}'s firing cycles "
+                    f"({ts.firing_cycle:g} s)", locate(("formation", "control_rate")), "formation.control_rate",
+                    f"set formation.control_rate to {1 / ts.firing_cycle:g} Hz or a divisor of it")])
+            view = SimpleNamespace(model=self.plant.model, base_joint_id=body.base_joint_id)
+            drives.append((i, ThrusterDrive(view, ts)))
+        return drives
+
     def _stepper(self, integrator: str):
         """step(q, v, dt, tau, base_wrenches, interface) -> (q, v) of the chosen integrator (built after every frame
         is added to the plant)."""
@@ -145,7 +170,7 @@ class FormationSimulation:
         """The shape wrench is an internal pair (F_L = 0): free-flying or hierarchical law, locked system free, both
         bodies acting."""
         return ((self.law.free_flying or self.law.hierarchical) and not self.law.locked.controlled
-                and self.law.actuation == "both")
+                and self.law.actuation == "both" and not self.drives)
 
     def _reaction(self, F2: np.ndarray):
         """interface(q, v) for the plant step: on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose, so
@@ -158,6 +183,33 @@ class FormationSimulation:
             return [(frame, -(g12.dualAction @ F2))]
 
         return reaction
+
+    def _propellant(self, i: int) -> float:
+        """Propellant used so far by body i's thrusters (kg; 0 without thrusters)."""
+        return next((d.used for j, d in self.drives if j == i), 0.0)
+
+    def _thrusters_step(self, q, v, t: float, dt: float, tau, base):
+        """One plant step cut at every thruster switching of either spacecraft (``step_drives``): ``base`` the other
+        base wrenches (ideal sources, pushes), the firings added to their bodies."""
+        from sms_cli.thrusters.drive import step_drives
+
+        interface = self._interface(None)
+
+        def advance(state, wrenches, h, a):
+            W = [base[0], base[1]]
+            for (i, _), w in zip(self.drives, wrenches):
+                W[i] = W[i] + w
+            return self.step(state[0], state[1], h, tau, (W[0], W[1]), interface)
+
+        return step_drives([d for _, d in self.drives], (q, v), t, dt, advance)
+
+    def _delivered(self, cmd) -> tuple[np.ndarray, np.ndarray]:
+        """The base wrenches delivered over the last plant step (thrusters: their firings' average; else the
+        commanded wrench)."""
+        out = [cmd.F1, cmd.F2]
+        for i, d in self.drives:
+            out[i] = d.delivered.copy()
+        return out[0], out[1]
 
     def _interface(self, reaction):
         """interface(q, v) for the plant step: the internal pair's reaction and the capture interface, or None."""
@@ -210,6 +262,10 @@ class FormationSimulation:
                     tau[:] = 0.0
                     tau[p.bodies[0].wheels_v] = cmd.tau_w1
                     tau[p.bodies[1].wheels_v] = cmd.tau_w2
+                    ideal = [cmd.F1, cmd.F2]
+                    for i, drive in self.drives:  # these bodies' wrenches go to their thrusters
+                        drive.command(t, ideal[i])
+                        ideal[i] = np.zeros(6)
                 if sample:
                     self._sample(rows, t, q, v, cmd, states)
                 if k == n_steps:
@@ -223,6 +279,8 @@ class FormationSimulation:
                     tau[self.arm_v] = self._arm_hold(q, v)
                 if self.internal_pair:  # F2 held in frame 2, its reaction on body 1 follows the relative pose
                     q, v = self.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._interface(self._reaction(cmd.F2)))
+                elif self.drives:
+                    q, v = self._thrusters_step(q, v, t, dt, tau, (ideal[0] + P1, ideal[1] + P2))
                 else:
                     q, v = self.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2), self._interface(None))
                 if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
@@ -271,6 +329,8 @@ class FormationSimulation:
             "locked_position": cmd.locked_error.position if cmd.locked_error else np.full(3, np.nan),
             "locked_angle": cmd.locked_error.angle if cmd.locked_error else math.nan,
             "F1": cmd.F1, "F2": cmd.F2, "F_L": cmd.F_L, "F_E": cmd.F_E,
+            "D1": self._delivered(cmd)[0], "D2": self._delivered(cmd)[1],
+            "propellant1": self._propellant(0), "propellant2": self._propellant(1),
             "wheels1": b1.wheel_rates, "wheels2": b2.wheel_rates, "tau_w1": cmd.tau_w1, "tau_w2": cmd.tau_w2,
             "saturated": cmd.saturated,
         }

@@ -79,36 +79,47 @@ class ThrusterDrive:
     def step(self, s, t: float, dt: float, tau: np.ndarray, advance):
         """The state after the plant step [t, t + dt] under the generalized forces ``tau`` (nv, without
         the thrusters) plus the firings; ``advance(s, tau, h, t)`` is one plant step of length h."""
-        impulse = np.zeros(self.ts.n)  # N s per thruster over this step
-        pts = self._breaks(t, t + dt)
-        for a, b in zip(pts[:-1], pts[1:]):
-            h = b - a
-            if h <= 0:
-                continue
-            on = self._on_at(0.5 * (a + b)) if self.used < self.ts.propellant else np.zeros(self.ts.n, bool)
-            mdot = float(self.mdot[on].sum())
-            if mdot > 0 and self.used + mdot * h > self.ts.propellant:  # the tank empties in this piece
-                h_burn = (self.ts.propellant - self.used) / mdot
-                s = self._piece(s, a, h_burn, on, mdot, tau, advance, impulse)
-                self.used = self.ts.propellant
-                s = self._piece(s, a + h_burn, h - h_burn, np.zeros(self.ts.n, bool), 0.0, tau, advance, impulse)
-            else:
-                s = self._piece(s, a, h, on, mdot, tau, advance, impulse)
-        if self.tank.set_removed(self.used) and self.on_change is not None:
-            self.on_change()
-        self.thrust_step = impulse / dt
-        self.delivered = self.B @ self.thrust_step
-        return s
+        def advance_one(s, wrenches, h, a):
+            tau_p = np.array(tau, float)
+            tau_p[:6] += wrenches[0]
+            return advance(s, tau_p, h, a)
 
-    def _piece(self, s, a, h, on, mdot, tau, advance, impulse):
-        if h <= 0:
-            return s
-        if self.tank.set_removed(self.used + 0.5 * mdot * h) and self.on_change is not None:
-            self.on_change()
-        f = np.where(on, self.ts.max_force, 0.0)
-        tau_p = np.array(tau, float)
-        tau_p[:6] += self.B @ f
-        s = advance(s, tau_p, h, a)
-        self.used += mdot * h
-        impulse += f * h
-        return s
+        return step_drives([self], s, t, dt, advance_one)
+
+    def _burning(self, tm: float) -> tuple[np.ndarray, float]:
+        """(on mask, total mass flow kg/s) at time tm (nothing once the tank is empty)."""
+        on = self._on_at(tm) if self.used < self.ts.propellant else np.zeros(self.ts.n, bool)
+        return on, float(self.mdot[on].sum())
+
+
+def step_drives(drives: list[ThrusterDrive], s, t: float, dt: float, advance):
+    """The state after the plant step [t, t + dt] with the firings of every drive (one per spacecraft):
+    ``advance(s, wrenches, h, a)`` is one plant step of length h from a with ``wrenches[k]`` the base
+    wrench [f; n] of drive k's thrusters on over that piece. The step is cut at every switching of any
+    drive and where a tank empties; each piece sees each body's mass at the piece's midpoint."""
+    impulses = [np.zeros(d.ts.n) for d in drives]
+    pts = sorted(set().union(*(d._breaks(t, t + dt) for d in drives)))
+    for a, b in zip(pts[:-1], pts[1:]):
+        while b - a > 0:
+            burning = [d._burning(0.5 * (a + b)) for d in drives]
+            h = b - a
+            for d, (_, mdot) in zip(drives, burning):  # a tank that empties inside cuts the piece there
+                if mdot > 0 and d.used + mdot * h > d.ts.propellant:
+                    h = min(h, (d.ts.propellant - d.used) / mdot)
+            for d, (_, mdot) in zip(drives, burning):
+                if d.tank.set_removed(d.used + 0.5 * mdot * h) and d.on_change is not None:
+                    d.on_change()
+            forces = [np.where(on, d.ts.max_force, 0.0) for d, (on, _) in zip(drives, burning)]
+            if h > 0:
+                s = advance(s, [d.B @ f for d, f in zip(drives, forces)], h, a)
+            for d, (_, mdot), f, imp in zip(drives, burning, forces, impulses):
+                empties = mdot > 0 and d.used + mdot * h >= d.ts.propellant - 1e-15 * d.ts.propellant
+                d.used = d.ts.propellant if empties and h < b - a else d.used + mdot * h
+                imp += f * h
+            a = a + h if h < b - a else b
+    for d, imp in zip(drives, impulses):
+        if d.tank.set_removed(d.used) and d.on_change is not None:
+            d.on_change()
+        d.thrust_step = imp / dt
+        d.delivered = d.B @ d.thrust_step
+    return s
