@@ -85,6 +85,10 @@ def compile_summary(mission_path: Path, strict: bool = False) -> dict[str, Any]:
 
         _, client = prepared(loaded)
         out["client"] = model_summary(client)
+        if client.thrusters is not None:
+            from sms_cli.thrusters.capability import capability_report
+
+            out["client"]["thrusters"] = capability_report(client.thrusters)
         out["pair"] = pair_summary(loaded, sm, client)
     if moves:
         out["moves"] = moves
@@ -156,6 +160,10 @@ def format_summary(s: dict[str, Any]) -> str:
         lines.append(f"client    {c['name']}: mass {c['total_mass_kg']:.4f} kg, DoF base {c['dof']['base']} · wheels "
                      f"{c['dof']['wheels']} · arm {c['dof']['arm']}")
         lines.extend(format_pair(s["pair"]))
+        if c.get("thrusters"):
+            from sms_cli.thrusters.capability import format_report
+
+            lines.extend("client " + line if i == 0 else line for i, line in enumerate(format_report(c["thrusters"])))
     if s["warnings"]:
         lines.append(f"warnings  {len(s['warnings'])}:")
         lines.extend("  - " + w.replace("\n", "\n    ") for w in s["warnings"])

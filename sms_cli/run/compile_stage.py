@@ -26,6 +26,10 @@ def run_compile(loaded, out: Path) -> dict[str, Any]:
 
         _, client = prepared(loaded)
         summary["client"] = _jsonable(model_summary(client))
+        if client.thrusters is not None:
+            from sms_cli.thrusters.capability import capability_report
+
+            summary["client"]["thrusters"] = _jsonable(capability_report(client.thrusters))
         summary["pair"] = _jsonable(pair_summary(loaded, sm, client))
     rd = ResultsDir(out)
     draw_robot(sm, rd.file("robot.png"))
