@@ -364,3 +364,11 @@ def test_client_thrusters_burn_what_they_deliver_and_the_servicer_stays_passive(
     H = result.trace["H_world"]
     expected_dp = np.sum(world_force, axis=0)
     assert np.linalg.norm(H[-1, :3] - H[0, :3] - expected_dp) < 0.02 * np.linalg.norm(expected_dp)
+
+
+def test_the_python_api_says_where_two_spacecraft_missions_run(tmp_path):
+    from sms_cli import api
+    from sms_cli.errors import InputError
+
+    with pytest.raises(InputError, match="two-spacecraft mission"):
+        api.simulate(S6)

@@ -62,6 +62,11 @@ def _prepared(loaded: LoadedMission):
     from sms_cli.model import compile_system
     from sms_cli.sim.validate import validate_simulation
 
+    if loaded.mission.simulation is None and loaded.mission.formation is not None:
+        raise InputError(problems=[Problem(
+            "this is a two-spacecraft mission (formation:): it runs through `sms simulate` and `sms run`; the Python "
+            "API's simulate() covers one-spacecraft missions", loaded.source.locate(("formation",)),
+            hint="use sms simulate MISSION.yaml -o DIR (or sms_cli.formation.stage.record_formation)")])
     if loaded.mission.simulation is None:
         raise InputError(problems=[Problem("this mission has no 'simulation:' section", loaded.source.locate(()),
                                            hint="add simulation: {dt, control_rate, attitude, arm, phases: [...]}")])
