@@ -160,6 +160,8 @@ def test_s6_through_the_cli(tmp_path):
         reader = make_reader(f)
         topics = {c.topic for c in reader.get_summary().channels.values()}
         robot = next(m for _, _, m in reader.iter_messages(topics=["/robot_description"]))
+        timing = next(m.metadata for m in reader.iter_metadata() if m.name == "sms.timing")
+    assert timing["replayable"] == "no" and "internal shape pair" in timing["not_replayable_because"]
     assert {"/tf", "/locked/twist", "/shape/twist", "/momentum/total", "/momentum/relative", "/energy"} <= topics
     assert b"client/bus" in robot.data and b"servicer/bus" in robot.data
     # the HIL export of the run (formation.facility): g1_HW⁻¹ g2_HW = g12 at every sample (Vicariotto 2023 (6.2))

@@ -46,6 +46,31 @@ def formation_topics(names: tuple[str, str], s: dict) -> dict[str, dict]:
     return out
 
 
+def formation_timing(spec) -> dict[str, str]:
+    """The ``sms.timing`` metadata record of a two-spacecraft recording (``sms_cli.sim.timing``'s keys, strings):
+    its rates and stamps, and why another engine cannot replay it from its topics."""
+    from sms_cli.sim.timing import HOLD, TIMING_VERSION
+
+    rate, dt, record = float(spec.control_rate), float(spec.dt), float(spec.record_rate)
+    return {
+        "version": TIMING_VERSION, "control_rate_hz": repr(rate), "control_period_s": repr(1.0 / rate),
+        "plant_dt_s": repr(dt), "plant_steps_per_control_period": str(int(round(1.0 / rate / dt))),
+        "record_rate_hz": repr(record), "record_period_s": repr(1.0 / record),
+        "integrator": f"{spec.integrator}: fixed-step RKMK4 of both free-flyers (sms_cli.formation.plant)",
+        "hold": HOLD,
+        "command_topics": "/<spacecraft>/wrench,/<spacecraft>/wheels/torque,/locked/wrench,/shape/wrench",
+        "command_stamp": "a command sample stamped at a control tick t_k is the command computed from the state at t_k, "
+                         "held over [t_k, t_k + control_period_s]; /<spacecraft>/wrench/delivered is the base wrench "
+                         "delivered over the plant step ending at t",
+        "state_stamp": "state topics stamped at t hold the plant state at t",
+        "replayable": "no",
+        "not_replayable_because": "a two-spacecraft recording holds the commanded base wrenches, not all that acted "
+                                  "within the plant steps (the internal shape pair is reflected on the master at every "
+                                  "integrator stage, thrusters switch within steps, the capture interface and the arm "
+                                  "hold act continuously)",
+    }
+
+
 class RecordedLinks:
     """The links of both spacecraft as the recording's transform tree: names ``<spacecraft>/<link>`` (as in
     ``sms_cli.formation.urdf_pair``), each one's parent link (the bases' is ``world``), and their world poses."""

@@ -79,6 +79,8 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
     KeyboardInterrupt (exit 130)."""
     from sms_cli.formation.metrics import formation_metrics
     from sms_cli.formation.plots import plot_formation
+    from sms_cli.formation.recording import formation_timing
+    from sms_cli.sim.timing import TIMING_METADATA
     from sms_cli.formation.simulate import FormationSimulation
     from sms_cli.formation.urdf_pair import pair_urdf
     from sms_cli.model.summary import model_summary
@@ -94,7 +96,8 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
         rec = McapRecorder(mcap_path, mission_text=loaded.text, mission_name=loaded.mission.name,
                            model_summary={f"{b.name}.{k}": v for b in sim.plant.bodies
                                           for k, v in model_summary(b.system).items()},
-                           urdf_text=urdf, versions=versions(), record_rate_hz=None)
+                           urdf_text=urdf, versions=versions(), record_rate_hz=None,
+                           metadata={TIMING_METADATA: formation_timing(loaded.mission.formation)})
         rec.add_transform_tree(sim.links.names, sim.links.parents)
         sim.recorder = rec
         result = None
