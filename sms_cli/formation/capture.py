@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.errors import InputError, Location, NumericalError, Problem
+from sms_cli.model.system import symmetric_from_crba
 from sms_cli.formation.plant import joint_forces, system_momentum  # noqa: F401  (one implementation, re-exported)
 
 STEPS_PER_PERIOD = 20  # plant steps needed per period of the interface's natural frequency
@@ -50,8 +51,7 @@ def frame_id(model: pin.Model, frame: int | str) -> int:
 
 def _mass_matrix(model: pin.Model, data: pin.Data, q: np.ndarray) -> np.ndarray:
     """Joint-space inertia M(q) (nv x nv, SI) from CRBA, symmetrised (CRBA fills the upper triangle)."""
-    M = pin.crba(model, data, q)
-    return np.triu(M) + np.triu(M, 1).T
+    return symmetric_from_crba(pin.crba(model, data, q))
 
 
 def relative_jacobian(model: pin.Model, data: pin.Data, q: np.ndarray, frame_a: int | str,

@@ -17,10 +17,6 @@ class CaptureMissed(Exception):
     """At the capture time the two frames are further apart than the tolerance (the run stops; exit 3)."""
 
 
-def _offset(p) -> pin.SE3:
-    return pin.SE3(pin.rpy.rpyToMatrix(*map(float, p.attitude)), np.asarray(p.position, float))
-
-
 class CapturePhase:
     """The capture of ``spec`` (a ``CaptureSpec``) on ``plant``; ``locate(path)`` gives a mission Location."""
 
@@ -39,8 +35,8 @@ class CapturePhase:
                                                          locate(here + ("servicer_frame",)))].name])
         own_b = c.frames[c.system.model.frames[frame_id(c.system.model, spec.client_frame, "formation.capture.client_frame",
                                                         locate(here + ("client_frame",)))].name]
-        self.frame_a = plant.add_frame(f"{servicer}/capture_interface", own_a, _offset(spec.servicer_offset))
-        self.frame_b = plant.add_frame(f"{client}/capture_interface", own_b, _offset(spec.client_offset))
+        self.frame_a = plant.add_frame(f"{servicer}/capture_interface", own_a, spec.servicer_offset.se3())
+        self.frame_b = plant.add_frame(f"{client}/capture_interface", own_b, spec.client_offset.se3())
         self.target = pin.SE3.Identity()  # joined: frame b on frame a
         self.gains = None
         self.monitor = C.CaptureMonitor(plant.model)

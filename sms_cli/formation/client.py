@@ -37,6 +37,15 @@ def client_view(loaded: LoadedMission) -> LoadedMission:
     return LoadedMission(mission, loaded.path, source, loaded.text)
 
 
+def initial_poses(mission, servicer) -> tuple:
+    """(servicer base, client base) world poses at t = 0 (``pinocchio.SE3``): the servicer's from its compiled
+    initial state, the client's ``client.pose`` in the servicer's base frame."""
+    import pinocchio as pin
+
+    g_servicer = pin.XYZQUATToSE3(servicer.q0[:7])
+    return g_servicer, g_servicer * mission.client.pose.se3()
+
+
 def compile_client(loaded: LoadedMission, strict: bool = False):
     """The client's SystemModel (InputError, exit 2, located under ``client.`` on any problem)."""
     from sms_cli.model.compiler import compile_system

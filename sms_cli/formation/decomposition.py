@@ -30,19 +30,10 @@ I6 = np.eye(6)
 L_, E_ = slice(0, 6), slice(6, 12)
 
 
-def _hat(a: np.ndarray) -> np.ndarray:
-    """3×3 cross-product matrix [a]× (a × b = [a]× b)."""
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
 def ad(xi: np.ndarray) -> np.ndarray:
-    """Small adjoint ad_ξ (6×6) of a twist ξ = [v; ω]: [[ω×, v×], [0, ω×]] (Vicariotto 2023 (3.3))."""
-    out = np.zeros((6, 6))
-    w, v = _hat(xi[3:]), _hat(xi[:3])
-    out[:3, :3] = w
-    out[:3, 3:] = v
-    out[3:, 3:] = w
-    return out
+    """Small adjoint ad_ξ (6×6) of a twist ξ = [v; ω]: [[ω×, v×], [0, ω×]] (Vicariotto 2023 (3.3)), Pinocchio's
+    ``Motion.action``."""
+    return pin.Motion(np.asarray(xi, dtype=float)).action
 
 
 def rigid_coriolis(M: np.ndarray, xi: np.ndarray) -> np.ndarray:
@@ -53,8 +44,8 @@ def rigid_coriolis(M: np.ndarray, xi: np.ndarray) -> np.ndarray:
     a = ad(xi)
     h = M @ xi
     Hbar = np.zeros((6, 6))
-    Hbar[:3, 3:] = Hbar[3:, :3] = _hat(h[:3])
-    Hbar[3:, 3:] = _hat(h[3:])
+    Hbar[:3, 3:] = Hbar[3:, :3] = pin.skew(h[:3])
+    Hbar[3:, 3:] = pin.skew(h[3:])
     return 0.5 * (M @ a - a.T @ M) - 0.5 * Hbar
 
 

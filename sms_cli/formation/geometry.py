@@ -76,10 +76,9 @@ def boxes_overlap(c1, A1, h1, c2, A2, h2, margin: float = 0.0) -> bool:
 
 def check_no_overlap(loaded, servicer, client) -> None:
     """InputError (exit 2) at ``client.pose`` when a body of one spacecraft intersects one of the other at t = 0."""
-    m = loaded.mission
-    ini = m.initial
-    g_s = pin.SE3(pin.rpy.rpyToMatrix(*map(float, ini.base_attitude)), np.asarray(ini.base_position, float))
-    g_c = g_s * pin.SE3(pin.rpy.rpyToMatrix(*map(float, m.client.pose.attitude)), np.asarray(m.client.pose.position, float))
+    from sms_cli.formation.client import initial_poses
+
+    g_s, g_c = initial_poses(loaded.mission, servicer)
     for ls, cs, As, hs in placed_boxes(servicer, g_s):
         for lc, cc, Ac, hc in placed_boxes(client, g_c):
             if boxes_overlap(cs, As, hs, cc, Ac, hc, margin=1e-6):

@@ -137,8 +137,8 @@ class RelativeLaw:
         self.wheel_damping = float(spec.wheel_damping)
         by_name = {names[0]: "master", names[1]: "other"}
         self.actuation = by_name.get(spec.actuation, spec.actuation)  # a spacecraft's name → its role
-        self.g1_des = g1_0 * _pose(spec.locked.setpoint_offset)
-        self.g12_des = g12_0 * _pose(spec.shape.setpoint_offset)
+        self.g1_des = g1_0 * spec.locked.setpoint_offset.se3()
+        self.g12_des = g12_0 * spec.shape.setpoint_offset.se3()
 
     def __call__(self, dec, b1: BodyState, b2: BodyState) -> Command:
         V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
@@ -177,8 +177,3 @@ class RelativeLaw:
 def _linear(grad: np.ndarray) -> np.ndarray:
     """The translational part of a potential's gradient [f; 0]."""
     return np.concatenate([grad[:3], np.zeros(3)])
-
-
-def _pose(p) -> pin.SE3:
-    """A PoseSpec (position m, roll-pitch-yaw rad) as an SE3."""
-    return pin.SE3(pin.rpy.rpyToMatrix(*map(float, p.attitude)), np.asarray(p.position, float))

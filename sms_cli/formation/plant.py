@@ -27,7 +27,7 @@ import pinocchio as pin
 from sms_cli.dynamics.integrator import _dexpinv_neg
 from sms_cli.errors import InputError, Problem
 from sms_cli.formation.decomposition import PairDecomposition, decompose
-from sms_cli.model.system import SystemModel
+from sms_cli.model.system import SystemModel, symmetric_from_crba
 
 #: interface(q, v) -> [(combined frame id, wrench (6) in that frame's LOCAL axes at its origin), …]
 Interface = Callable[[np.ndarray, np.ndarray], Sequence[tuple[int, np.ndarray]]]
@@ -104,11 +104,6 @@ def system_momentum(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarr
     """Total momentum [p; L_O] (N s, N m s) of every body, world axes, angular part about the world origin."""
     h_g = pin.computeCentroidalMomentum(model, data, q, v)
     return np.concatenate([h_g.linear, h_g.angular + np.cross(data.com[0], h_g.linear)])
-
-
-def _full(M: np.ndarray) -> np.ndarray:
-    """Symmetric matrix from CRBA output (Pinocchio fills at least the upper triangle)."""
-    return np.triu(M) + np.triu(M, 1).T
 
 
 def _dexpinv_blocks(theta: np.ndarray, u: np.ndarray, blocks: Sequence[slice]) -> np.ndarray:
@@ -231,7 +226,7 @@ class TwoBodyPlant:
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Joint-space inertia (nv × nv), block-diagonal per body."""
-        return _full(pin.crba(self.model, self.data, q))
+        return symmetric_from_crba(pin.crba(self.model, self.data, q))
 
     def locked_inertia(self, q: np.ndarray, i: int | str) -> np.ndarray:
         """M_i (6×6): spacecraft i's spatial inertia with its joints locked, about its base origin in base axes."""
@@ -250,8 +245,20 @@ class TwoBodyPlant:
         at q if the caller has it."""
         M = self.mass_matrix(q) if M is None else M
         s1, s2 = self.base_blocks
-        dec = decompose(M[s1, s1], M[s2, s2], self.base_pose(q, 0).inverse() * self.base_pose(q, 1))
-        return dec, np.linalg.solve(M[s1, s1], M[s1] @ v), np.linalg.solve(M[s2, s2], M[s2] @ v)
+        return self.pair_decomposition(q, M), np.linalg.solve(M[s1, s1], M[s1] @ v), np.linalg.solve(M[s2, s2], M[s2] @ v)
+
+    def pair_decomposition(self, q: np.ndarray, M: np.ndarray) -> PairDecomposition:
+        """The locked/shape decomposition at q (g12 = g1⁻¹ g2, the locked inertias from the mass matrix M at q)."""
+        s1, s2 = self.base_blocks
+        return decompose(M[s1, s1], M[s2, s2], self.base_pose(q, 0).inverse() * self.base_pose(q, 1))
+
+    def connection(self, M: np.ndarray, i: int | str) -> tuple[np.ndarray, np.ndarray]:
+        """(Λ_i = M_bb⁻¹ M_bθ, 6 × joints of body i: the mechanical connection, so that its locked twist is
+        ξ_i = V_i + Λ_i θ̇_i; M_θθ − M_θb Λ_i, the joints' shape inertia) from the mass matrix M at q."""
+        b = self.body(i)
+        Mbj = M[b.base_v, b.joints_v]
+        Lam = np.linalg.solve(M[b.base_v, b.base_v], Mbj)
+        return Lam, M[b.joints_v, b.joints_v] - Mbj.T @ Lam
 
     # ------------------------------------------------------------------ dynamics
     def accelerations(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, base_wrenches: Wrenches = (None, None),
@@ -302,10 +309,7 @@ class DecomposedIntegrator:
     def _split(self, q: np.ndarray):
         p = self.plant
         M = p.mass_matrix(q)
-        (b1, b2), (s1, s2) = p.bodies, p.base_blocks
-        dec = decompose(M[s1, s1], M[s2, s2], p.base_pose(q, 0).inverse() * p.base_pose(q, 1))
-        conn = [np.linalg.solve(M[b.base_v, b.base_v], M[b.base_v, b.joints_v]) for b in (b1, b2)]
-        return M, dec, conn
+        return M, p.pair_decomposition(q, M), [p.connection(M, i)[0] for i in range(2)]
 
     def _joint_rates(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n1 = self.plant.bodies[0].system.nv - 6

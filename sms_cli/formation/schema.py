@@ -37,12 +37,27 @@ class PoseSpec(StrictModel):
     position: Position3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     attitude: Rotation3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
 
+    def se3(self):
+        """The pose as a ``pinocchio.SE3`` (roll-pitch-yaw by the project's convention, ``sms_cli.model.conventions``)."""
+        import numpy as np
+        import pinocchio as pin
+
+        from sms_cli.model.conventions import euler_zyx_to_matrix
+
+        return pin.SE3(euler_zyx_to_matrix(*map(float, self.attitude)), np.asarray(self.position, float))
+
 
 class TwistSpec(StrictModel):
     """A twist [v; ω]: linear (m/s) and angular (rad/s) velocity, components in the frame the field names."""
 
     linear: vector(Velocity, 3, "m/s") = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     angular: Rate3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def as_array(self):
+        """[v; ω] (6,), linear first as Pinocchio's."""
+        import numpy as np
+
+        return np.array([*self.linear, *self.angular], dtype=float)
 
 
 class ClientSpec(StrictModel):

@@ -37,10 +37,6 @@ class FormationResult:
     capture: dict | None = None
 
 
-def _pose(p) -> pin.SE3:
-    return pin.SE3(pin.rpy.rpyToMatrix(*map(float, p.attitude)), np.asarray(p.position, float))
-
-
 class FormationSimulation:
     """Simulates a mission's ``formation:`` section. ``servicer`` and ``client`` are the two SystemModels;
     body 1 (the master) is the one ``formation.master`` names."""
@@ -71,9 +67,9 @@ class FormationSimulation:
         self.links = RecordedLinks(self.plant)
         self.progress = sys.stderr.isatty() if progress is None else progress
         # poses at t = 0: the servicer's base from the mission's initial state, the client's relative to it
-        ini = mission.initial
-        g_servicer = pin.SE3(pin.rpy.rpyToMatrix(*map(float, ini.base_attitude)), np.asarray(ini.base_position, float))
-        g_client = g_servicer * _pose(mission.client.pose)
+        from sms_cli.formation.client import initial_poses
+
+        g_servicer, g_client = initial_poses(mission, servicer)
         poses = {SERVICER: g_servicer, mission.client.name: g_client}
         self.g0 = (poses[self.names[0]], poses[self.names[1]])
         self.wheel_limits = [np.array([w.max_torque for w in b.system.wheels], float) for b in self.plant.bodies]
@@ -88,28 +84,16 @@ class FormationSimulation:
         p = self.plant
         ini = self.spec.initial
         if ini.bodies:  # each base's own twist (its base frame)
-            V = [np.concatenate([np.asarray(ini.bodies[n].linear, float), np.asarray(ini.bodies[n].angular, float)])
-                 if n in ini.bodies else np.zeros(6) for n in self.names]
+            V = [ini.bodies[n].as_array() if n in ini.bodies else np.zeros(6) for n in self.names]
             return p.initial_state(self.g0[0], V[0], self.g0[1], V[1])
         q, v = p.initial_state(self.g0[0], np.zeros(6), self.g0[1], np.zeros(6))
         dec, _, _ = p.decomposition(q, v)
-        V_L = np.concatenate([np.asarray(ini.locked.linear, float), np.asarray(ini.locked.angular, float)])
-        V_E = np.concatenate([np.asarray(ini.shape.linear, float), np.asarray(ini.shape.angular, float)])
-        xi = dec.body_twists(V_L, V_E)
+        xi = dec.body_twists(ini.locked.as_array(), ini.shape.as_array())
         for i in range(2):
             body = p.bodies[i]
-            connection, _ = self._connection(q, i)
+            connection, _ = p.connection(p.mass_matrix(q), i)
             v[body.base_v] = xi[i] - connection @ v[body.joints_v]  # V_i = ξ_i − Λ_i θ̇_i
         return q, v
-
-    def _connection(self, q, i, M=None):
-        """Λ_i = M_bb⁻¹ M_bθ (6 × internal joints of body i) and the wheels' shape inertia (Schur complement)."""
-        p = self.plant
-        M = p.mass_matrix(q) if M is None else M
-        b, w = p.bodies[i].base_v, p.bodies[i].joints_v
-        Mbw = M[b, w]
-        Lam = np.linalg.solve(M[b, b], Mbw)
-        return Lam, M[w, w] - Mbw.T @ Lam
 
     def body_states(self, q, v):
         """(PairDecomposition, BodyState of body 1, of body 2, mass matrix) at (q, v); the BodyStates carry the
@@ -120,7 +104,7 @@ class FormationSimulation:
         out = []
         for i, xi in enumerate((xi1, xi2)):
             body = p.bodies[i]
-            Lam, Mth = self._connection(q, i, M)
+            Lam, Mth = p.connection(M, i)
             wsel = body.wheels_v - body.joints_v.start  # the wheels among the body's joints
             out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
                                  Mth[np.ix_(wsel, wsel)]))

@@ -27,8 +27,7 @@ def pair_summary(loaded, servicer, client) -> dict[str, Any]:
     from sms_cli.formation.schema import SERVICER
 
     m = loaded.mission
-    pose = m.client.pose
-    g_sc = pin.SE3(pin.rpy.rpyToMatrix(*map(float, pose.attitude)), np.asarray(pose.position, float))
+    g_sc = m.client.pose.se3()
     master = m.formation.master if m.formation is not None else SERVICER
     models = {SERVICER: servicer, m.client.name: client}
     other = m.client.name if master == SERVICER else SERVICER

@@ -39,7 +39,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-def _symmetric(upper: np.ndarray) -> np.ndarray:
+def symmetric_from_crba(upper: np.ndarray) -> np.ndarray:
     """Full symmetric matrix from Pinocchio's CRBA output (upper triangle filled)."""
     full = np.triu(upper)
     full += full.T
@@ -283,7 +283,7 @@ class SystemModel:
     def rigid_mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Symmetric joint-space inertia H(q) of the rigid system (nv×nv)."""
         M = pin.crba(self.model, self.data, q)
-        return M.copy() if self._crba_full else _symmetric(M)
+        return M.copy() if self._crba_full else symmetric_from_crba(M)
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Augmented mass matrix [[H, JᵀLᵀ], [L J, I]] (nx×nx)."""
