@@ -11,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.formation import capture as C
+from sms_cli.formation.plant import prefixed
 
 
 class CaptureMissed(Exception):
@@ -35,8 +36,8 @@ class CapturePhase:
                                                          locate(here + ("servicer_frame",)))].name])
         own_b = c.frames[c.system.model.frames[frame_id(c.system.model, spec.client_frame, "formation.capture.client_frame",
                                                         locate(here + ("client_frame",)))].name]
-        self.frame_a = plant.add_frame(f"{servicer}/capture_interface", own_a, spec.servicer_offset.se3())
-        self.frame_b = plant.add_frame(f"{client}/capture_interface", own_b, spec.client_offset.se3())
+        self.frame_a = plant.add_frame(prefixed("capture_interface", servicer), own_a, spec.servicer_offset.se3())
+        self.frame_b = plant.add_frame(prefixed("capture_interface", client), own_b, spec.client_offset.se3())
         self.target = pin.SE3.Identity()  # joined: frame b on frame a
         self.gains = None
         self.monitor = C.CaptureMonitor(plant.model)

@@ -78,7 +78,8 @@ def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, 
                               "angle_error_final_deg": float(np.degrees(trace["locked_angle"][-1]))})
     H = trace["H_world"]
     drift_p = drift_k = 0.0
-    for a, b in _quiet_windows(t, spec.pushes):
+    quiet = _quiet_windows(t, spec.pushes)
+    for a, b in quiet:
         drift_p = max(drift_p, float(np.max(np.linalg.norm(H[a:b + 1, :3] - H[a, :3], axis=1))))
         drift_k = max(drift_k, float(np.max(np.linalg.norm(H[a:b + 1, 3:] - H[a, 3:], axis=1))))
     scale_p = max(float(np.max(np.linalg.norm(H[:, :3], axis=1))), 1e-300)
@@ -91,7 +92,7 @@ def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, 
     }
     out["pushes"] = [_push_metrics(i, p, t, H) for i, p in enumerate(spec.pushes)]
     W = trace["W"]
-    rise = max((float(np.max(np.diff(W[a:b + 1]))) for a, b in _quiet_windows(t, spec.pushes)), default=0.0)
+    rise = max((float(np.max(np.diff(W[a:b + 1]))) for a, b in quiet), default=0.0)
     out["energy"] = {"lyapunov_initial_J": float(W[0]), "lyapunov_final_J": float(W[-1]),
                      "lyapunov_final_over_initial": float(W[-1] / W[0]) if W[0] > 0 else None,
                      "lyapunov_max_rise_between_samples_J": max(rise, 0.0),

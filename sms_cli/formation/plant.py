@@ -68,13 +68,19 @@ def _refusals(sm: SystemModel, name: str) -> list[Problem]:
     return problems
 
 
-def _prefixed(model: pin.Model, prefix: str) -> pin.Model:
+def prefixed(name: str, body: str) -> str:
+    """The name of spacecraft ``body``'s joint, frame or link ``name`` in the combined model, its URDF and its
+    recording (``client/bus``)."""
+    return f"{body}/{name}"
+
+
+def _prefixed(model: pin.Model, body: str) -> pin.Model:
     out = model.copy()
     for j in range(1, out.njoints):
-        out.names[j] = prefix + out.names[j]
+        out.names[j] = prefixed(out.names[j], body)
     for k in range(1, out.nframes):
         f = out.frames[k]
-        f.name = prefix + f.name
+        f.name = prefixed(f.name, body)
         out.frames[k] = f
     return out
 
@@ -162,7 +168,7 @@ class TwoBodyPlant:
             raise InputError(problems=problems)
         for sm in (master, other):
             sm.require_dynamics("a two-spacecraft simulation")
-        a, b = _prefixed(master.model, names[0] + "/"), _prefixed(other.model, names[1] + "/")
+        a, b = _prefixed(master.model, names[0]), _prefixed(other.model, names[1])
         model = pin.appendModel(a, b, 0, pin.SE3.Identity())
         model.gravity = pin.Motion.Zero()
         bodies = []
@@ -170,7 +176,7 @@ class TwoBodyPlant:
                                          (other, names[1], a.nq, a.nv, a.njoints - 1, a.nframes)):
             frames = _frame_map(sm.model, fo)
             for own, cid in frames.items():  # appendModel keeps the order of joints and frames
-                assert model.frames[cid].name == f"{name}/{own}", (own, model.frames[cid].name)
+                assert model.frames[cid].name == prefixed(own, name), (own, model.frames[cid].name)
             bodies.append(BodyMap(
                 name=name, system=sm, q=slice(qo, qo + sm.nq), v=slice(vo, vo + sm.nv), base_v=slice(vo, vo + 6),
                 joints_q=slice(qo + 7, qo + sm.nq), joints_v=slice(vo + 6, vo + sm.nv),

@@ -76,7 +76,7 @@ class RecordedLinks:
     ``sms_cli.formation.urdf_pair``), each one's parent link (the bases' is ``world``), and their world poses."""
 
     def __init__(self, plant):
-        from sms_cli.formation.urdf_pair import prefixed
+        from sms_cli.formation.plant import prefixed
 
         self.plant = plant
         self.names, self.parents, self.frame_ids = [], [], []

@@ -76,6 +76,10 @@ class FormationSimulation:
         self.q, self.v = self._initial_state()
         self.arm_q0 = self.q[self.arm_q].copy()
         self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]), self.names)
+        # the shape wrench is an internal pair (F_L = 0): free-flying or hierarchical law, locked system free, both
+        # bodies acting through ideal sources
+        self.internal_pair = ((self.law.free_flying or self.law.hierarchical) and not self.law.locked.controlled
+                              and self.law.actuation == "both" and not self.drives)
 
     # ---------------------------------------------------------------- state
     def _initial_state(self):
@@ -149,13 +153,6 @@ class FormationSimulation:
 
         return step
 
-    @property
-    def internal_pair(self) -> bool:
-        """The shape wrench is an internal pair (F_L = 0): free-flying or hierarchical law, locked system free, both
-        bodies acting."""
-        return ((self.law.free_flying or self.law.hierarchical) and not self.law.locked.controlled
-                and self.law.actuation == "both" and not self.drives)
-
     def _reaction(self, F2: np.ndarray):
         """interface(q, v) for the plant step: on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose, so
         that the pair stays equal and opposite (total momentum conserved) while the bodies turn."""
@@ -172,12 +169,10 @@ class FormationSimulation:
         """Propellant used so far by body i's thrusters (kg; 0 without thrusters)."""
         return next((d.used for j, d in self.drives if j == i), 0.0)
 
-    def _thrusters_step(self, q, v, t: float, dt: float, tau, base):
+    def _thrusters_step(self, q, v, t: float, dt: float, tau, base, interface):
         """One plant step cut at every thruster switching of either spacecraft (``step_drives``): ``base`` the other
         base wrenches (ideal sources, pushes), the firings added to their bodies."""
         from sms_cli.thrusters.drive import step_drives
-
-        interface = self._interface(None)
 
         def advance(state, wrenches, h, a):
             W = [base[0], base[1]]
@@ -250,6 +245,9 @@ class FormationSimulation:
                     for i, drive in self.drives:  # these bodies' wrenches go to their thrusters
                         drive.command(t, ideal[i])
                         ideal[i] = np.zeros(6)
+                    # F2 held in frame 2; its reaction on body 1 follows the relative pose at every stage
+                    reaction = self._reaction(cmd.F2) if self.internal_pair else None
+                    interface = self._interface(reaction)
                 if sample:
                     self._sample(rows, t, q, v, cmd, states)
                 if k == n_steps:
@@ -258,15 +256,16 @@ class FormationSimulation:
                 if self.capture is not None:
                     if self.capture.due(t):
                         self.capture.engage(t, q, v)
+                        interface = self._interface(reaction)
                     self.capture.sample(q, v)
                 if self.arm_v.size:
                     tau[self.arm_v] = self._arm_hold(q, v)
-                if self.internal_pair:  # F2 held in frame 2, its reaction on body 1 follows the relative pose
-                    q, v = self.step(q, v, dt, tau, (P1, cmd.F2 + P2), self._interface(self._reaction(cmd.F2)))
+                if self.internal_pair:
+                    q, v = self.step(q, v, dt, tau, (P1, cmd.F2 + P2), interface)
                 elif self.drives:
-                    q, v = self._thrusters_step(q, v, t, dt, tau, (ideal[0] + P1, ideal[1] + P2))
+                    q, v = self._thrusters_step(q, v, t, dt, tau, (ideal[0] + P1, ideal[1] + P2), interface)
                 else:
-                    q, v = self.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2), self._interface(None))
+                    q, v = self.step(q, v, dt, tau, (cmd.F1 + P1, cmd.F2 + P2), interface)
                 if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
                     status, divergence = "diverged", "the state is no longer finite"
                     break
@@ -297,6 +296,7 @@ class FormationSimulation:
         """Append one sample to the trace and, with a recorder, to the MCAP file; ``states``: ``body_states(q, v)``."""
         p = self.plant
         dec, b1, b2, M = states
+        delivered = self._delivered(cmd)
         V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
         T_L, T_E = dec.energies(V_L, V_E)
         g1, g2 = b1.pose, b2.pose
@@ -313,7 +313,7 @@ class FormationSimulation:
             "locked_position": cmd.locked_error.position if cmd.locked_error else np.full(3, np.nan),
             "locked_angle": cmd.locked_error.angle if cmd.locked_error else math.nan,
             "F1": cmd.F1, "F2": cmd.F2, "F_L": cmd.F_L, "F_E": cmd.F_E,
-            "D1": self._delivered(cmd)[0], "D2": self._delivered(cmd)[1],
+            "D1": delivered[0], "D2": delivered[1],
             "propellant1": self._propellant(0), "propellant2": self._propellant(1),
             "wheels1": b1.wheel_rates, "wheels2": b2.wheel_rates, "tau_w1": cmd.tau_w1, "tau_w2": cmd.tau_w2,
             "saturated": cmd.saturated,

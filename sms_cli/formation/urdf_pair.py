@@ -6,10 +6,7 @@ from __future__ import annotations
 
 from lxml import etree
 
-
-def prefixed(name: str, prefix: str) -> str:
-    """The recorded name of a link or joint of spacecraft ``prefix``."""
-    return f"{prefix}/{name}"
+from sms_cli.formation.plant import prefixed
 
 
 def pair_urdf(robots: list[tuple[str, str, str]]) -> str:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sms_cli.sim.attitude_math import quat_conj as qconj
+from sms_cli.sim.attitude_math import quat_log
 from sms_cli.sim.attitude_math import quat_mul as qmul
 
 # ----------------------------------------------------------------- quaternion/pose algebra (vectorised)
@@ -70,7 +71,7 @@ def continuous(poses: np.ndarray) -> np.ndarray:
 
 def rotation_angle(q: np.ndarray) -> np.ndarray:
     """Rotation angle (rad, in [0, π]) of unit quaternions (…, 4)."""
-    return 2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3]))
+    return np.linalg.norm(quat_log(q), axis=-1)
 
 
 def pose_row(se3) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Real thrusters (``sms_cli.thrusters``) in the compiled loop: one plant step cut at the firing pattern's
 switching instants, each piece integrated with the base body holding the propellant mass at the piece's
-midpoint, the tank emptying within a piece. The same sequence as ``sms_cli.thrusters.drive.ThrusterDrive.step``
-(its ``_breaks``, ``_on_at``, ``_piece``) and ``propellant.Tank.set_removed``; the pattern itself (allocation by
+midpoint, the tank emptying within a piece. The same sequence as ``sms_cli.thrusters.drive.step_drives`` for one
+drive (its ``_breaks``, ``_on_at``, the cut where the tank empties) and ``propellant.Tank.set_removed``; the pattern itself (allocation by
 the LP, modulation) comes from ``ThrusterDrive.command``, called by the runner at each control tick.
 
 ``thr`` is the tuple (B (6, n): base wrench [f; n] per newton, base joint frame; max_force (n,) N; mass_flow (n,)
