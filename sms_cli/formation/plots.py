@@ -20,13 +20,7 @@ def plot_formation(trace: dict, spec, names: tuple[str, str], out_dir: Path) -> 
     labels = ["start"] + [f"{np.linalg.norm(p.force):g} N on {p.body}" for p in spec.pushes]
 
     def finish(fig, axes, filename):
-        for a in axes:
-            a.set_xlim(float(t[0]), float(t[-1]))
-        S.phase_marks(axes[0], starts, labels)
-        for a in axes[1:]:
-            S.phase_marks(a, starts)
-        axes[-1].set_xlabel("time (s)")
-        files.append(S.save(fig, out_dir / filename))
+        files.append(S.save_time_figure(fig, axes, t, starts, labels, out_dir / filename))
 
     fig, axes = S.new(S.FULL_PX, 420, 2, 1, sharex=True)
     pos = trace["shape_position"] * 100.0

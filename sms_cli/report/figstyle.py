@@ -337,6 +337,19 @@ def phase_marks(ax, starts: list[float], names: list[str] | None = None) -> None
                                                              "alpha": 0.75})
 
 
+def save_time_figure(fig, axes, t, starts: list[float], names: list[str] | None, target: Path) -> Path:
+    """Finish a figure of time histories and save it: every axis spans the run (when it has a time span), the
+    phase (or event) starts are marked, named on the top axis, and the bottom axis says "time (s)"."""
+    for a in axes:
+        if t[-1] > t[0]:  # a run that stopped at its first sample has no time span to show
+            a.set_xlim(float(t[0]), float(t[-1]))
+    phase_marks(axes[0], starts, names)
+    for a in axes[1:]:
+        phase_marks(a, starts)
+    axes[-1].set_xlabel("time (s)")
+    return save(fig, target)
+
+
 def limit_lines(ax, limit: float | None, data: np.ndarray | None = None, label: str = "limit", unit: str = ""):
     """± a limit as dotted red lines; the upper line (None when the limit is absent, infinite, or more
     than 3× the largest |data|: then a note names it, so the data keep the axis)."""

@@ -26,14 +26,7 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
     names = [phase_names[i] for i in present]
 
     def finish(fig, axes, filename):
-        for a in axes:
-            if t[-1] > t[0]:  # a run that stopped at its first sample has no time span to show
-                a.set_xlim(float(t[0]), float(t[-1]))
-        S.phase_marks(axes[0], starts, names)
-        for a in axes[1:]:
-            S.phase_marks(a, starts)
-        axes[-1].set_xlabel("time (s)")
-        files.append(S.save(fig, out_dir / filename))
+        files.append(S.save_time_figure(fig, axes, t, starts, names, out_dir / filename))
 
     fig, ax = S.new(S.FULL_PX, 280)
     ax.plot(t, np.degrees(trace["att_err"]), lw=1.3, color="C0")
