@@ -22,7 +22,6 @@ import numpy as np
 from numba import njit
 
 JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
-HOT = dict(JIT, inline="always")
 
 #: Columns of the ``out`` array of :func:`block_indices` (NaN where not computed).
 OUT = ("ee_x", "ee_y", "ee_z", "ee_roll", "ee_pitch", "ee_yaw", "mu_fixed", "fixed_cond", "mu_gjm", "gjm_cond",
@@ -35,7 +34,7 @@ FREE, MANIP, DYN, BASE, NULL, MOMENTUM, ZONOTOPE = 1, 2, 4, 8, 16, 32, 64
 # ----------------------------------------------------------------------------- helpers on slots
 # Work matrices are slots of one scratch array S (slots × D × D) per thread, addressed by index: no
 # array (not even a view) is made per sample. A matrix "x, r, c" is S[x, :r, :c].
-@njit(**HOT)
+@njit(**JIT)
 def det3(S, x):
     """Determinant of the 3×3 matrix S[x] (cofactors along the first row)."""
     return (S[x, 0, 0] * (S[x, 1, 1] * S[x, 2, 2] - S[x, 1, 2] * S[x, 2, 1])
@@ -43,7 +42,7 @@ def det3(S, x):
             + S[x, 0, 2] * (S[x, 1, 0] * S[x, 2, 1] - S[x, 1, 1] * S[x, 2, 0]))
 
 
-@njit(**HOT)
+@njit(**JIT)
 def inv3(S, x, y):
     """S[y] = S[x]⁻¹ (3×3, adjugate over determinant)."""
     for j in range(3):
@@ -58,7 +57,7 @@ def inv3(S, x, y):
             S[y, i, j] /= det
 
 
-@njit(**HOT)
+@njit(**JIT)
 def eig_sym3(S, x):
     """Smallest and largest eigenvalues of the symmetric 3×3 matrix S[x] (Smith 1961)."""
     q = (S[x, 0, 0] + S[x, 1, 1] + S[x, 2, 2]) / 3.0
@@ -76,7 +75,7 @@ def eig_sym3(S, x):
     return q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0), q + 2.0 * p * math.cos(phi)
 
 
-@njit(**HOT)
+@njit(**JIT)
 def mm(S, a, b, y, r, k, c):
     """S[y, :r, :c] = S[a, :r, :k] @ S[b, :k, :c]."""
     for i in range(r):
@@ -87,7 +86,7 @@ def mm(S, a, b, y, r, k, c):
             S[y, i, j] = s
 
 
-@njit(**HOT)
+@njit(**JIT)
 def mmt(S, a, b, y, r, k, c):
     """S[y, :r, :c] = S[a, :r, :k] @ S[b, :c, :k]ᵀ."""
     for i in range(r):
@@ -98,7 +97,7 @@ def mmt(S, a, b, y, r, k, c):
             S[y, i, j] = s
 
 
-@njit(**HOT)
+@njit(**JIT)
 def gram(S, x, r, c, g):
     """S[g] = the smaller Gram matrix of S[x, :r, :c] (X Xᵀ if r ≤ c, else Xᵀ X); returns its size."""
     if r <= c:
@@ -113,7 +112,7 @@ def gram(S, x, r, c, g):
     return c
 
 
-@njit(**HOT)
+@njit(**JIT)
 def mu_of_gram(S, g, m):
     """sqrt(det S[g, :m, :m]) clipped at 0 (closed form for 3×3; 1 for an empty matrix)."""
     if m == 3:
@@ -125,7 +124,7 @@ def mu_of_gram(S, g, m):
     return math.sqrt(max(d, 0.0))
 
 
-@njit(**HOT)
+@njit(**JIT)
 def manipulability(S, x, r, c, g):
     """μ of X = S[x, :r, :c]: the product of the min(r, c) singular values = sqrt(det) of the smaller
     Gram matrix (0 when rank-deficient or empty); |det X| for 3×3. S[g]: scratch."""
@@ -136,7 +135,7 @@ def manipulability(S, x, r, c, g):
     return mu_of_gram(S, g, gram(S, x, r, c, g))
 
 
-@njit(**HOT)
+@njit(**JIT)
 def cond_of_gram(S, g, m):
     """σ_min/σ_max of the matrix whose Gram matrix is S[g, :m, :m] (0 for a zero or empty matrix)."""
     if m == 0:
@@ -151,7 +150,7 @@ def cond_of_gram(S, g, m):
     return math.sqrt(max(lo, 0.0) / hi)
 
 
-@njit(**HOT)
+@njit(**JIT)
 def cross_cols(S, c, x, y, n):
     """S[y, :3, j] = c × S[x, :3, j] for j < n (c: a 3-vector)."""
     for j in range(n):
@@ -175,7 +174,7 @@ def manipulability_stack(X):
 
 
 # ----------------------------------------------------------------------------- null motion, momentum zonotope
-@njit(**HOT)
+@njit(**JIT)
 def null_motion_mu(S, jw, x, n, w):
     """μ(X N), N = I - J⁺J with J = S[jw, :3, :n] (Kraiem 2022 (3.24)-(3.25)), X = S[x, :3, :n];
     slots w … w+4: scratch.
@@ -206,7 +205,7 @@ def null_motion_mu(S, jw, x, n, w):
     return manipulability(S, XJ, 3, n, Gi)
 
 
-@njit(**HOT)
+@njit(**JIT)
 def zonotope_gauge(S, h, nv, g, nr):
     """max over the columns h of H = S[h, :3, :nv] of the gauge of h in the zonotope {G t, |t|∞ ≤ 1},
     G = S[g, :3, :nr] of rank 3: a 3-D zonotope's facets are parallel to pairs of generators, so

@@ -16,13 +16,12 @@ import math
 import numpy as np
 from numba import njit
 
-from sms_cli.sim.compiled import HOT as _HOT
-from sms_cli.sim.compiled import JIT as _JIT
+from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.tree import FREE_FLYER, PRISMATIC, REVOLUTE, REVOLUTE_UNBOUNDED
 
 
 # ----------------------------------------------------------------------------- 3-D helpers
-@njit(**_HOT)
+@njit(**JIT)
 def quat_to_matrix(x, y, z, w, R):
     """R (3×3) of the unit quaternion (x, y, z, w)."""
     R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
@@ -36,7 +35,7 @@ def quat_to_matrix(x, y, z, w, R):
     R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def matrix_to_quat(R, out):
     """Quaternion (x, y, z, w) of a rotation matrix, by Eigen's algorithm (the same sign as
     ``pin.Quaternion(R)``)."""
@@ -64,7 +63,7 @@ def matrix_to_quat(R, out):
     out[k] = (R[k, i] + R[i, k]) * s
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def axis_rotation(ax, angle_cos, angle_sin, R):
     """Rotation by an angle (given by its cosine and sine) about the unit axis ax."""
     c, s = angle_cos, angle_sin
@@ -81,7 +80,7 @@ def axis_rotation(ax, angle_cos, angle_sin, R):
     R[2, 2] = c + t * z * z
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
@@ -89,7 +88,7 @@ def cross(a, b, out):
 
 
 # ----------------------------------------------------------------------------- kinematics
-@njit(**_HOT)
+@njit(**JIT)
 def compose(R1, p1, R2, p2, R_out, p_out):
     """(R_out, p_out) = (R1, p1) · (R2, p2): rotation R1 R2, translation p1 + R1 p2."""
     for a in range(3):
@@ -104,7 +103,7 @@ def compose(R1, p1, R2, p2, R_out, p_out):
             R_out[a, b] = acc
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
     the joint's fixed placement composed with its motion (rotation Rj, translation tj); Rj is built
@@ -133,7 +132,7 @@ def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
                 Rj[a, b] = PR[a, 0] * c0 + PR[a, 1] * c1 + PR[a, 2] * c2
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def world_placements(parent, R_rel, p_rel, oR, op):
     """World placement of each joint frame from the parent-relative ones (parents come first)."""
     for i in range(parent.shape[0]):
@@ -147,7 +146,7 @@ def world_placements(parent, R_rel, p_rel, oR, op):
             compose(oR[pi], op[pi], R_rel[i], p_rel[i], oR[i], op[i])
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def frame_poses(oR, op, f_joint, f_R, f_p, out):
     """World poses [x y z qx qy qz qw] of frames placed (f_R, f_p) in joints f_joint (−1: the world)."""
     R = np.empty((3, 3))
@@ -169,7 +168,7 @@ def frame_poses(oR, op, f_joint, f_R, f_p, out):
             out[k, 3 + a] = quat[a]
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def relative_poses(world, parent, out):
     """Pose of each frame in its parent frame (row ``parent[k]``, −1: the world), from world
     poses [x y z qx qy qz qw]: translation R_pᵀ (r_c − r_p), rotation q_p* ⊗ q_c
@@ -194,7 +193,7 @@ def relative_poses(world, parent, out):
 
 
 # ----------------------------------------------------------------------------- spatial algebra
-@njit(**_HOT)
+@njit(**JIT)
 def motion_act_inv(R, p, m, out):
     """(R, p)⁻¹ acting on motion m (parent coordinates → child): [Rᵀ(v − p×ω); Rᵀω]."""
     v0 = m[0] - (p[1] * m[5] - p[2] * m[4])
@@ -205,7 +204,7 @@ def motion_act_inv(R, p, m, out):
         out[3 + a] = R[0, a] * m[3] + R[1, a] * m[4] + R[2, a] * m[5]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def force_act(R, p, f, out):
     """(R, p) acting on force f (child coordinates → parent): [R f; R n + p × R f]."""
     for a in range(3):
@@ -216,7 +215,7 @@ def force_act(R, p, f, out):
     out[5] += p[0] * out[1] - p[1] * out[0]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def motion_cross(v, m, out):
     """v × m = [ω×m_v + v×m_ω; ω×m_ω]."""
     out[0] = v[4] * m[2] - v[5] * m[1] + v[1] * m[5] - v[2] * m[4]
@@ -227,7 +226,7 @@ def motion_cross(v, m, out):
     out[5] = v[3] * m[4] - v[4] * m[3]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def force_cross(v, f, out):
     """v ×* f = [ω×f; ω×n + v×f]."""
     out[0] = v[4] * f[2] - v[5] * f[1]
@@ -238,7 +237,7 @@ def force_cross(v, f, out):
     out[5] = v[3] * f[4] - v[4] * f[3] + v[0] * f[1] - v[1] * f[0]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def add_inertia_to_parent(R, p, Ia, J, K, out):
     """out += Xᵀ Ia X for X = motion_act_inv(R, p): a symmetric 6×6 inertia moved to the parent frame,
     on the LOWER triangle of out only (its upper triangle is left as is; Ia is read whole). By 3×3
@@ -277,7 +276,7 @@ def add_inertia_to_parent(R, p, Ia, J, K, out):
             out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, b] - K[3 + b, a] - py[a]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def mirror_lower(M):
     """Copy the lower triangle of the 6×6 M onto its upper triangle (M symmetric)."""
     for a in range(6):
@@ -285,7 +284,7 @@ def mirror_lower(M):
             M[b, a] = M[a, b]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def _subspace(kind, axis, S):
     """Motion subspace (6,) of a 1-DoF joint in its frame."""
     S[:] = 0.0
@@ -296,7 +295,7 @@ def _subspace(kind, axis, S):
 
 
 # ----------------------------------------------------------------------------- dynamics
-@njit(**_JIT)
+@njit(**JIT)
 def workspace(n, nq, nv, ne=0):
     """Scratch arrays for n bodies (nq, nv, ne modes), reused by every kernel below (no allocation
     in the hot loop). Entries 25-33 are the joint-stop kernels' (``lock_joints``)."""
@@ -309,7 +308,7 @@ def workspace(n, nq, nv, ne=0):
             np.empty((nv, nv)), np.empty((nv, nv)), np.empty(nv))
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
     """Spatial velocity of each body in its joint frame."""
     n = parent.shape[0]
@@ -325,7 +324,7 @@ def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
             vel[i, off + a] += axis[i, a] * v[iv]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def _solve_spd6(A, b, L, out):
     """out = A⁻¹ b for a symmetric positive definite 6×6 A, read on its lower triangle (Cholesky
     A = L Lᵀ; L is scratch and holds the inverse of its diagonal: 6 divisions, not 27)."""
@@ -352,7 +351,7 @@ def _solve_spd6(A, b, L, out):
         out[i] = x * L[i, i]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
@@ -448,7 +447,7 @@ def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, 
             acc6[i, off + a] += axis[i, a] * qdd
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, out, ws):
     """out = [p (3), k about the CoM (3), k about the world origin (3), kinetic energy (J)], world frame."""
     vel, oR, op, f, fw = ws[0], ws[16], ws[17], ws[13], ws[14]
@@ -490,7 +489,7 @@ def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_re
 
 
 # ----------------------------------------------------------------------------- integration
-@njit(**_HOT)
+@njit(**JIT)
 def quat_exp_mul(q, w, out):
     """out = q ⊗ exp(w/2) (xyzw; w a rotation vector in the frame of q), normalised."""
     ang = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
@@ -510,7 +509,7 @@ def quat_exp_mul(q, w, out):
     out[0], out[1], out[2], out[3] = x / nrm, y / nrm, z / nrm, ww / nrm
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def integrate(kind, axis, idx_q, idx_v, q, theta, out):
     """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
     n = kind.shape[0]
@@ -553,7 +552,7 @@ def integrate(kind, axis, idx_q, idx_v, q, theta, out):
             out[iq] = q[iq] + theta[iv]
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def dexpinv_neg(theta, v, out):
     """dexp⁻¹_{−θ}(v) = v + ½[θ, v] + 1/12 [θ, [θ, v]] on the free-flyer block (first 6),
     identity on the joints (``sms_cli.dynamics.integrator._dexpinv_neg``)."""
@@ -575,7 +574,7 @@ def dexpinv_neg(theta, v, out):
     out[5] = w2 + 0.5 * b2 + (p0 * b1 - p1 * b0) / 12.0
 
 
-@njit(**_HOT)
+@njit(**JIT)
 def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                     neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                     q, v, eta, etad, tau, vdot, etadd, ws):
@@ -618,7 +617,7 @@ def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, arma
         etadd[k] = acc
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                q, v, eta, etad, tau, dt, q_out, v_out, eta_out, etad_out, ws, locked=None):
@@ -680,13 +679,12 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
 
 
-aba_call = njit(**_JIT)(aba.py_func)  # the same ABA behind a plain call, for callers off the hot path
 
 
 # ----------------------------------------------------------------------------- joint stops
 # The contact law of sms_cli.dynamics.joint_stops (which holds the rest of the stop law, for both
 # engines): columns of M⁻¹ and the acceleration of locked joints held at zero.
-@njit(**_JIT)
+@njit(**JIT)
 def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, cols, G, ws):
     """G[:, j] = column cols[j] of the inverse augmented mass matrix (rows nv..: the modal part) at the
     joint transforms (R_rel, p_rel): ABA at zero velocity on a unit generalized force, the base-mounted
@@ -703,7 +701,7 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
         for a in range(nv):
             unit[a] = 0.0
         unit[cols[j]] = 1.0
-        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
+        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
         for a in range(nv):
             G[a, j] = col[a]
         for k in range(ne):
@@ -713,7 +711,7 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
             G[nv + k, j] = acc
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def cholesky(A, k, L):
     """L[:k, :k] lower triangular with L Lᵀ = A[:k, :k] (symmetric positive definite A)."""
     for j in range(k):
@@ -729,7 +727,7 @@ def cholesky(A, k, L):
             L[i, j] = x / d
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def cholesky_solve(L, b, k, out):
     """out[:k] = (L Lᵀ)⁻¹ b[:k], L from ``cholesky``."""
     for i in range(k):
@@ -744,14 +742,14 @@ def cholesky_solve(L, b, k, out):
         out[i] = x / L[i, i]
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def _solve_spd(A, b, k, L, out):
     """out[:k] = A[:k, :k]⁻¹ b[:k] for a symmetric positive definite A (Cholesky; L is k×k scratch)."""
     cholesky(A, k, L)
     cholesky_solve(L, b, k, out)
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def lock_joints(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, modal_Bt, locked, vdot, etadd, ws):
     """The contact law (``joint_stops.lock_accelerations``): add the generalized forces λ on the joints
     ``locked`` that make their accelerations zero, a = a_free + M⁻¹ e_L λ with (M⁻¹)_LL λ = −(a_free)_L;
@@ -777,7 +775,7 @@ def lock_joints(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_
         etadd[m] += acc
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                   neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                   q, v, eta, etad, tau, vdot, etadd, ws):
@@ -788,7 +786,7 @@ def accelerations(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armatu
                     q, v, eta, etad, tau, vdot, etadd, ws)
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def inverse_mass_columns(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, q, cols, G,
                          ws):
     """G (nv + ne × len(cols)) = columns cols of the inverse augmented mass matrix at q (stop impulses)."""
@@ -798,7 +796,7 @@ def inverse_mass_columns(parent, kind, axis, place_R, place_p, inertia, leaf_IA,
 
 
 # ----------------------------------------------------------------------------- joint-space terms (arm laws)
-@njit(**_JIT)
+@njit(**JIT)
 def mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M):
     """M (nv×nv) = the joint-space inertia H(q) with the rotor armature on its diagonal (Pinocchio's
     ``crba``, both triangles), by the composite-rigid-body algorithm at the joint transforms (R_rel, p_rel)."""
@@ -858,7 +856,7 @@ def mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M):
         M[k, k] += armature[k]
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, out):
     """out (nv) = the bias forces C(q, v) v at zero acceleration (Pinocchio's ``nonLinearEffects``, no
     gravity), by recursive Newton-Euler at the joint transforms (R_rel, p_rel)."""
