@@ -23,3 +23,18 @@ if [ ! -f "$STAMP" ] || [ pyproject.toml -nt "$STAMP" ] || [ constraints.txt -nt
   touch "$STAMP"
 fi
 export PATH="$PWD/.venv/bin:$PATH"
+
+# Compile the numba kernels of the given missions once after an install (`sms warmup`), so that their
+# first run does not pause for the compilation; $1 names the stamp, the rest are mission files.
+warm_kernels() {
+  local stamp=".venv/.sms-warm-$1"
+  shift
+  if [ ! -f "$stamp" ] || [ "$STAMP" -nt "$stamp" ]; then
+    echo "compiling the numba kernels of $# mission(s), once after the install (sms warmup)" >&2
+    if .venv/bin/sms warmup "$@" >&2; then
+      touch "$stamp"
+    else
+      echo "the warm-up failed (above): the kernels will compile on their first use instead" >&2
+    fi
+  fi
+}

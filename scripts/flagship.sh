@@ -7,6 +7,7 @@ source "$(dirname "$0")/_env.sh"
 MISSION="${1:-missions/pulsar_simple.yaml}"
 NAME="$(basename "$MISSION" .yaml)"
 OUT="results/$NAME"
+warm_kernels "$NAME" "$MISSION"
 set +e
 sms run "$MISSION" --out "$OUT"
 rc=$?

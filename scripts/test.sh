@@ -13,4 +13,5 @@ if [ -n "$missing" ] && command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]
   { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $missing; } > .venv/chromium-install.log 2>&1 \
     || echo "could not install$missing (see .venv/chromium-install.log): the browser and PDF tests will be skipped" >&2
 fi
+warm_kernels missions missions/*.yaml
 exec .venv/bin/python -m pytest "$@"

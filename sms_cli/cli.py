@@ -671,6 +671,41 @@ def inspect_cmd(
     run_guarded(body)
 
 
+@command("warmup")
+def warmup_cmd(
+    missions: Annotated[list[Path], typer.Argument(help="mission YAML files", metavar="MISSION.yaml...",
+                                                   show_default=False)],
+    lanes: Annotated[Optional[int], typer.Option("--lanes", min=1, help=(
+        "processes compiling at once (default: the usable cores; SMS_COMPILE_LANES sets it too)"))] = None,
+) -> None:
+    """Compile the kernels the missions' analysis and simulation use, so that their first run does not pause.
+
+    numba compiles a kernel the first time it runs after an install and caches it (next to the package, or in
+    numba's per-user cache); a first `sms run` of the flagship otherwise pauses for about a minute on 2 cores.
+    This compiles every kernel the missions' analysis and simulation stages call, in parallel, and writes
+    nothing but that cache. The README's setup scripts run it once after installing. A mission whose gains
+    only `sms synthesize` can write (attitude: from_gains) keeps its simulation kernels for its first run.
+
+    Example:
+
+    \b
+        sms warmup missions/pulsar_simple.yaml
+        sms warmup missions/*.yaml
+    """
+
+    def body() -> int:
+        from sms_cli.run.warmup import warm_missions
+
+        r = warm_missions(missions, lanes)
+        for note in r["notes"]:
+            err(f"  {note}")
+        typer.echo(f"{r['missions']} mission(s): {r['calls']} kernel call(s), {r['compiled']} compiled on "
+                   f"{r['lanes']} lane(s) in {r['seconds']:.1f} s (the others were cached)")
+        return 0
+
+    run_guarded(body)
+
+
 def main() -> None:
     """Console-script entry point. SIGTERM is handled as Ctrl-C: files are finished, exit 130."""
     import signal

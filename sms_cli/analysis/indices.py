@@ -313,15 +313,22 @@ class IndexKernel:
         this kernel's argument types, once per process (``_compiled`` does it on its first call)."""
         if _WARMED:
             return
-        from sms_cli.sim.compiled.warmup import KernelCall, warm
+        from sms_cli.sim.compiled.warmup import warm
+
+        warm([[self.warm_call()]], what="analysis")
+        _WARMED.append(True)
+
+    def warm_call(self):
+        """The ``kernels.block_indices`` call of this kernel on throw-away arrays of its argument types
+        (``sms_cli.sim.compiled.warmup.KernelCall``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
 
         nv, n = self.model.nv, self.nm + self.nr
         Ms, Js = np.zeros((1, nv, nv)), np.zeros((1, 6, nv))
         i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
         args = (Ms, Js, i64(self.L.v_arm), i64(self._act), False, 0, self._q_max, self._omega_max, self._tau_max,
                 np.zeros((self.nm, 1)), np.full((1, len(K.OUT)), np.nan), np.empty((1, 3, n)), np.empty((1, 6, n)))
-        warm([[KernelCall("sms_cli.analysis.kernels:block_indices", args)]], what="analysis")
-        _WARMED.append(True)
+        return KernelCall("sms_cli.analysis.kernels:block_indices", args)
 
     def _compiled(self, Ms: np.ndarray, Js: np.ndarray, what: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``kernels.block_indices`` on a block: (columns ``kernels.OUT`` × k, A k × 3 × n, J* k × 6 × n),

@@ -100,6 +100,14 @@ def analyze_mission(loaded, out: Path | None = None, *, plots: bool | None = Non
         return _study(loaded, spec, out, draw, formats, progress, own)
 
 
+def analysis_kernel_calls(variants) -> list[list]:
+    """The kernel calls of a study (``sms_cli.sim.compiled.warmup``): each variant's index kernel (their
+    argument types are the same: one compiles), the statistics' kernels."""
+    from sms_cli.analysis.summary import warm_calls
+
+    return [[v.kernel.warm_call() for v in variants], warm_calls()]
+
+
 def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, formats: tuple[str, ...], progress: bool | None,
            pool) -> tuple[dict, list[LinearModel]]:
     from sms_cli.analysis import plots as P
@@ -108,6 +116,7 @@ def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, formats: tu
     from sms_cli.analysis.table import sample_tables, table_names
     from sms_cli.analysis.workspace import build_variants, evaluate_block, make_sampler
     from sms_cli.model import compile_system
+    from sms_cli.sim.compiled.warmup import warm
 
     sm = compile_system(loaded)
     section: dict = {"defaults_used": loaded.mission.analysis is None}
@@ -121,8 +130,7 @@ def _study(loaded, spec: AnalysisSpec, out: Path | None, draw: bool, formats: tu
                                 best=spec.best, seed=spec.sampling.seed) for v in variants}
     comps = {v.name: Comparison(v.kernel.columns) for v in variants[1:]}
     bar = Progress(sampler.total * len(variants), f"analyze {loaded.mission.name}", enabled=progress)
-    for v in variants:
-        v.kernel.warm_up()  # a cold cache compiles here, with the pause on stderr, not in the timed study
+    warm(analysis_kernel_calls(variants), what="analysis")  # a cold cache compiles here, pause on stderr, not in the study
     t_compute = 0.0
     t0 = time.perf_counter()
     tables = {}

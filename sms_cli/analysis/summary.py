@@ -168,6 +168,17 @@ class StudyStats:
         return out
 
 
+def warm_calls() -> list:
+    """The calls of this module's kernels on throw-away arrays of the types a study passes them
+    (``sms_cli.sim.compiled.warmup.KernelCall``): the reservoir's row replacement, the slices' cells."""
+    from sms_cli.sim.compiled.warmup import KernelCall
+
+    rows, cells = np.zeros((2, 3)), np.zeros((2, 3))
+    return [KernelCall(f"{__name__}:_replace_rows", (np.zeros((1, 3)), 0, rows, 0, np.zeros(2, dtype=np.int64)), cost=0.2),
+            KernelCall(f"{__name__}:_slice_add", (np.searchsorted(np.zeros(1), np.zeros(2)), rows, np.isfinite(rows), cells,
+                                                  cells.copy(), cells.copy(), np.zeros((2, 3), dtype=np.int64)), cost=0.2)]
+
+
 @njit(cache=True, nogil=True)
 def _slice_add(bins, X, finite, s_min, s_max, s_sum, s_cnt):
     """Add rows X (k × n) to the slice cells (bin × column) of their bins: min / max / sum / count of

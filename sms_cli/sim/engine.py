@@ -111,10 +111,12 @@ class Progress:
 
 
 class Simulation:
-    """One mission simulation on a compiled SystemModel."""
+    """One mission simulation on a compiled SystemModel. ``any_gains``: an NDI mission whose gains are
+    not synthesized yet gets gains of the right shapes (for ``kernel_groups`` only: the kernels compile
+    for argument types; ``sms warmup``), not an error."""
 
     def __init__(self, sm: SystemModel, spec: SimulationSpec, recorder=None, progress: bool | None = None,
-                 results_dir=None, mission_dir=None):
+                 results_dir=None, mission_dir=None, any_gains: bool = False):
         from sms_cli.sim.laws import build_arm_law, build_attitude_law, build_resolved_rate
 
         self.sm = sm
@@ -148,7 +150,7 @@ class Simulation:
         if spec.ndi is not None:
             from sms_cli.sim.laws.ndi import build_ndi
 
-            self.ndi = build_ndi(spec.ndi, sm, 1.0 / spec.control_rate, results_dir, mission_dir)
+            self.ndi = build_ndi(spec.ndi, sm, 1.0 / spec.control_rate, results_dir, mission_dir, any_gains)
         self.dt = spec.dt
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.total_time = sum(p.duration for p in spec.phases)
@@ -327,11 +329,16 @@ class Simulation:
         return self.run_python()
 
     def warm_up(self) -> None:
-        """Load (on a cold cache: compile, in parallel) the kernels the chosen loop calls, from the
-        objects that call them (``sms_cli.sim.compiled.kernels``): the compiled loop, or the compiled
-        plant (and its joint-stop kernels) and the attitude law's, and the recording's."""
-        from sms_cli.sim.compiled.kernels import kernel_groups
+        """Load (on a cold cache: compile, in parallel) the kernels of ``kernel_groups``."""
         from sms_cli.sim.compiled.warmup import warm
+
+        warm(self.kernel_groups())
+
+    def kernel_groups(self) -> list:
+        """The kernel calls the chosen loop makes (``sms_cli.sim.compiled.warmup``), from the objects
+        that make them (``sms_cli.sim.compiled.kernels``): the compiled loop, or the compiled plant (and
+        its joint-stop kernels) and the attitude law's, and the recording's."""
+        from sms_cli.sim.compiled.kernels import kernel_groups
 
         if self.compiled_loop and self.ndi is not None:  # the NDI loop (sms_cli.sim.compiled.ndi_runner)
             if self._compiled is None:
@@ -355,7 +362,7 @@ class Simulation:
                                    arm_law=self.arm_law, rr=self.rr, disturbed=bool(self.spec.disturbances))
             if self.ndi is not None:  # the NDI law's kernels (sms_cli.sim.compiled.ndi_law)
                 groups.append(self.ndi.warm_calls())
-        warm(groups)
+        return groups
 
     # ------------------------------------------------------------------ main loop
     def run_python(self) -> SimResult:

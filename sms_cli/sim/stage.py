@@ -56,7 +56,7 @@ class SimulationDiverged(NumericalError):
         self.run = run
 
 
-def _prepared(loaded: LoadedMission):
+def prepared_simulation(loaded: LoadedMission):
     """(compiled model, simulation spec with every ``duration: auto`` resolved, move plans) of a mission
     with a valid ``simulation:`` section (InputError otherwise)."""
     from sms_cli.model import compile_system
@@ -130,7 +130,7 @@ def record_simulation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | No
     recording cut back to its last whole chunk (readable), the section says so, DiskFull (exit 3).
     Results of another mission in ``out_dir`` are not mixed in (``ResultsDir.writing``). gains.yaml
     (``attitude: from_gains``, the NDI) is read from ``gains_dir``, by default ``out_dir``."""
-    sm, spec, plans = _prepared(loaded)
+    sm, spec, plans = prepared_simulation(loaded)
     results = ResultsDir(out_dir)
     with results.writing(loaded.mission.name, loaded.path):
         return _simulate(loaded, sm, spec, plans, results, Path(mcap_path) if mcap_path else results.file("simulation.mcap"), progress,
@@ -145,7 +145,7 @@ def simulate_mission(loaded: LoadedMission, progress: bool | None = False,
     SimulationDiverged (exit 3) with what ran; Ctrl-C raises KeyboardInterrupt at once."""
     from sms_cli.sim.engine import Simulation
 
-    sm, spec, plans = _prepared(loaded)
+    sm, spec, plans = prepared_simulation(loaded)
     result = Simulation(sm, spec, None, progress, results_dir=gains_dir, mission_dir=loaded.path.parent).run()
     section = _section(result, _base(loaded), {}, plans)
     if result.status == "diverged":

@@ -89,8 +89,14 @@ def warm(groups: list[list[KernelCall]], *, lanes: int | None = None, stream=Non
 def _make_calls(calls: list[KernelCall], t0: float, progress: bool) -> list[str]:
     """A lane's job: the calls in order, each kernel reported on stderr when ``progress`` (t0: the
     warm-up's start on ``time.perf_counter``, a system-wide clock, so worker lines share its origin)."""
+    import warnings
+
+    from numba.core.errors import NumbaPerformanceWarning
+
     for c in calls:
-        c()
+        with warnings.catch_warnings():  # numba's hints on array layouts are for sms's developers, not its users
+            warnings.simplefilter("ignore", NumbaPerformanceWarning)
+            c()
         if progress:
             sys.stderr.write(f"    [{time.perf_counter() - t0:5.1f} s] compiled {c.kernel.split(':')[1]}\n")
             sys.stderr.flush()

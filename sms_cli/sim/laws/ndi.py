@@ -163,8 +163,11 @@ def ndi_warm_calls(law: NdiObserver) -> list:
     ]
 
 
-def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_dir=None) -> NdiObserver:
-    """NdiObserver from a mission's ``simulation.ndi`` (and ``gains.yaml`` when gains are not inline)."""
+def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_dir=None,
+              any_gains: bool = False) -> NdiObserver:
+    """NdiObserver from a mission's ``simulation.ndi`` (and ``gains.yaml`` when gains are not inline).
+    ``any_gains``: without gains.yaml, unit gains and a zero observer gain of the right shapes (a law to
+    list the kernel calls of, ``sms warmup``; never to run)."""
     from pathlib import Path
 
     from sms_cli.errors import InputError, Problem
@@ -176,6 +179,9 @@ def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_di
         candidates = [Path(mission_dir) / spec.gains] if spec.gains and mission_dir else []
         candidates += [Path(results_dir) / (spec.gains or "gains.yaml")] if results_dir else []
         path = next((c for c in candidates if c.exists()), None)
+        if path is None and any_gains:
+            return NdiObserver(sm, 1.0, 1.0, np.zeros((2 * sm.reduced.K_f.shape[0] + 3, 3)), spec.attitude_gain, period,
+                               spec.wheel_feedforward)
         if path is None:
             raise InputError(problems=[Problem(
                 "simulation.ndi needs gains: none given and no gains.yaml found "
