@@ -215,14 +215,14 @@ class NdiCompiledSimulation(CompiledSimulation):
         return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
 
     def warm_groups(self) -> list:
-        """The kernel calls of ``run`` on throw-away data (``sms_cli.sim.compiled.warmup``), callees first: the law's
-        kernels, the plant step (with the joint stops: the stop law's step), the wheel inertia, then the loop on
-        zero ticks; the recording's momenta and encoding."""
+        """The kernel calls of ``run`` on throw-away data (``sms_cli.sim.compiled.warmup``), callees first: the plant
+        step (with the joint stops: the stop law's step), the wheel inertia, then the loop on zero ticks (which
+        compiles the NDI law's kernels for the array layouts it passes them; the law's own calls, on contiguous
+        arrays, are the Python loop's); the recording's momenta and encoding."""
         from sms_cli.recording.encoding import warm_call
         from sms_cli.sim.compiled.dynamics import workspace
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.compiled.warmup import KernelCall
-        from sms_cli.sim.laws.ndi import ndi_warm_calls
 
         sm = self.sm
         tree = self._tree_args()
@@ -266,4 +266,4 @@ class NdiCompiledSimulation(CompiledSimulation):
             eta[None].copy(), ed[None].copy(), np.empty((1, 10)), np.empty((0, sm.nx, sm.nx))), cost=3.0)]
         if self.rec is not None:
             momenta += [self.kinematics.warm_call(), warm_call()]
-        return [ndi_warm_calls(self.ndi), loop, momenta]
+        return [loop, momenta]
