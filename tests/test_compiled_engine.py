@@ -60,7 +60,7 @@ def test_kernels_equal_pinocchio(system):
         out = np.empty(m.nv)
         R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
         D.joint_transforms(T.kind, T.axis, T.place_R, T.place_p, T.idx_q, q, R_rel, p_rel)
-        D.aba(T.parent, T.kind, T.axis, T.inertia, T.leaf_IA, T.armature, T.idx_v, R_rel, p_rel, v, tau, np.zeros((6, 6)),
+        D.aba_call(T.parent, T.kind, T.axis, T.inertia, T.leaf_IA, T.armature, T.idx_v, R_rel, p_rel, v, tau, np.zeros((6, 6)),
                    np.zeros(6), out, ws)
         assert np.abs(out - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max())
         qi = np.empty(m.nq)

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled import HOT, JIT
 from sms_cli.sim.compiled.attitude_laws import _sign
 from sms_cli.sim.compiled.dynamics import cholesky, cholesky_solve
 
@@ -34,7 +34,7 @@ ARM_PAR_ROWS = 6
 MODEL_LAWS = (COMPUTED_TORQUE, SMC_COMPUTED_TORQUE)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _error(q_ref, q, wrap, i):
     """e_i = q_d − q, modulo 2π into (−π, π] on a continuous joint."""
     e = q_ref[i] - q[i]
@@ -123,7 +123,7 @@ def arm_model_terms(M, nb, a, p, Mstar, hstar):
             Mstar[j, i] = s
 
 
-@njit(**JIT)
+@njit(**HOT)
 def quintic(s):
     """Rest-to-rest quintic blend on s ∈ [0, 1]: (p, dp/ds, d²p/ds²) (``references.quintic``)."""
     s = min(max(s, 0.0), 1.0)

@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled import HOT, JIT
 from sms_cli.sim.compiled.control import mrp_feedback
 
 # law codes of ``attitude_law`` (the compiled loop's dispatch)
@@ -38,13 +38,13 @@ BS_K1, BS_K2, BS_GYRO, BS_N = 0, 9, 18, 19
 MRP_N = 8  # [K, P, Ki, integral_limit, control_law_type, L (3)]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _gain(par, at, x0, x1, x2, i):
     """Row i of the 3×3 gain at par[at:at+9] times x."""
     return par[at + 3 * i] * x0 + par[at + 3 * i + 1] * x1 + par[at + 3 * i + 2] * x2
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _sign(x):
     """np.sign: ±1, and 0 (or NaN) for 0 (or NaN)."""
     if x > 0:
@@ -54,7 +54,7 @@ def _sign(x):
     return x
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _clock(mem, t):
     """Time since the previous call (mem[0]: started flag, mem[1]: previous t); 0 on the first call."""
     dt = t - mem[1] if mem[0] != 0.0 else 0.0
@@ -70,12 +70,12 @@ def sliding_surface(qe, omega, omega_r, par, at, out):
         out[i] = (omega[i] - omega_r[i]) + _gain(par, at, qe[0], qe[1], qe[2], i)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _surface(qe, omega, omega_r, par, at, i):
     return (omega[i] - omega_r[i]) + _gain(par, at, qe[0], qe[1], qe[2], i)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _qv_dot(qe, omega, omega_r, out):
     """q̇_v = ½ (q_w δω + q_v × δω)."""
     d0, d1, d2 = omega[0] - omega_r[0], omega[1] - omega_r[1], omega[2] - omega_r[2]
@@ -85,7 +85,7 @@ def _qv_dot(qe, omega, omega_r, out):
     out[2] = 0.5 * (w * d2 + (x * d1 - y * d0))
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _gyroscopic(omega, J, h, out):
     """ω × (J ω + h)."""
     w0, w1, w2 = omega[0], omega[1], omega[2]
@@ -204,7 +204,7 @@ def twisting_smc(qe, omega, omega_r, domega_r, J, Jd, h, par, mem, t, out):
         out[i] = -_gain(par, TW_K1, f0, f1, f2, i) - _gain(par, TW_K2, g0, g1, g2, i)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _backstepping_rates(qe, omega, omega_r, par, wc, wt):
     """ω_c = −K₁ q_v + ω_r and ω̃ = ω − ω_c."""
     for i in range(3):

@@ -16,12 +16,12 @@ import math
 import numpy as np
 from numba import njit
 
-from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled import HOT, JIT
 from sms_cli.sim.compiled.tree import FREE_FLYER, PRISMATIC, REVOLUTE, REVOLUTE_UNBOUNDED
 
 
 # ----------------------------------------------------------------------------- 3-D helpers
-@njit(**JIT)
+@njit(**HOT)
 def quat_to_matrix(x, y, z, w, R):
     """R (3×3) of the unit quaternion (x, y, z, w)."""
     R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
@@ -35,7 +35,7 @@ def quat_to_matrix(x, y, z, w, R):
     R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def matrix_to_quat(R, out):
     """Quaternion (x, y, z, w) of a rotation matrix, by Eigen's algorithm (the same sign as
     ``pin.Quaternion(R)``)."""
@@ -63,7 +63,7 @@ def matrix_to_quat(R, out):
     out[k] = (R[k, i] + R[i, k]) * s
 
 
-@njit(**JIT)
+@njit(**HOT)
 def axis_rotation(ax, angle_cos, angle_sin, R):
     """Rotation by an angle (given by its cosine and sine) about the unit axis ax."""
     c, s = angle_cos, angle_sin
@@ -88,7 +88,7 @@ def cross(a, b, out):
 
 
 # ----------------------------------------------------------------------------- kinematics
-@njit(**JIT)
+@njit(**HOT)
 def compose(R1, p1, R2, p2, R_out, p_out):
     """(R_out, p_out) = (R1, p1) · (R2, p2): rotation R1 R2, translation p1 + R1 p2."""
     for a in range(3):
@@ -103,7 +103,7 @@ def compose(R1, p1, R2, p2, R_out, p_out):
             R_out[a, b] = acc
 
 
-@njit(**JIT)
+@njit(**HOT)
 def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
     """Placement of each joint frame in its parent joint frame (the root's: in the world):
     the joint's fixed placement composed with its motion (rotation Rj, translation tj); Rj is built
@@ -132,7 +132,7 @@ def joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_out, p_out):
                 Rj[a, b] = PR[a, 0] * c0 + PR[a, 1] * c1 + PR[a, 2] * c2
 
 
-@njit(**JIT)
+@njit(**HOT)
 def world_placements(parent, R_rel, p_rel, oR, op):
     """World placement of each joint frame from the parent-relative ones (parents come first)."""
     for i in range(parent.shape[0]):
@@ -193,7 +193,7 @@ def relative_poses(world, parent, out):
 
 
 # ----------------------------------------------------------------------------- spatial algebra
-@njit(**JIT)
+@njit(**HOT)
 def motion_act_inv(R, p, m, out):
     """(R, p)⁻¹ acting on motion m (parent coordinates → child): [Rᵀ(v − p×ω); Rᵀω]."""
     v0 = m[0] - (p[1] * m[5] - p[2] * m[4])
@@ -204,7 +204,7 @@ def motion_act_inv(R, p, m, out):
         out[3 + a] = R[0, a] * m[3] + R[1, a] * m[4] + R[2, a] * m[5]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def force_act(R, p, f, out):
     """(R, p) acting on force f (child coordinates → parent): [R f; R n + p × R f]."""
     for a in range(3):
@@ -215,7 +215,7 @@ def force_act(R, p, f, out):
     out[5] += p[0] * out[1] - p[1] * out[0]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def motion_cross(v, m, out):
     """v × m = [ω×m_v + v×m_ω; ω×m_ω]."""
     out[0] = v[4] * m[2] - v[5] * m[1] + v[1] * m[5] - v[2] * m[4]
@@ -226,7 +226,7 @@ def motion_cross(v, m, out):
     out[5] = v[3] * m[4] - v[4] * m[3]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def force_cross(v, f, out):
     """v ×* f = [ω×f; ω×n + v×f]."""
     out[0] = v[4] * f[2] - v[5] * f[1]
@@ -237,7 +237,7 @@ def force_cross(v, f, out):
     out[5] = v[3] * f[4] - v[4] * f[3] + v[0] * f[1] - v[1] * f[0]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def add_inertia_to_parent(R, p, Ia, J, K, out):
     """out += Xᵀ Ia X for X = motion_act_inv(R, p): a symmetric 6×6 inertia moved to the parent frame,
     on the LOWER triangle of out only (its upper triangle is left as is; Ia is read whole). By 3×3
@@ -276,7 +276,7 @@ def add_inertia_to_parent(R, p, Ia, J, K, out):
             out[3 + a, 3 + b] += J[3 + a, 3 + b] - K[3 + a, b] - K[3 + b, a] - py[a]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def mirror_lower(M):
     """Copy the lower triangle of the 6×6 M onto its upper triangle (M symmetric)."""
     for a in range(6):
@@ -284,7 +284,7 @@ def mirror_lower(M):
             M[b, a] = M[a, b]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _subspace(kind, axis, S):
     """Motion subspace (6,) of a 1-DoF joint in its frame."""
     S[:] = 0.0
@@ -308,7 +308,7 @@ def workspace(n, nq, nv, ne=0):
             np.empty((nv, nv)), np.empty((nv, nv)), np.empty(nv))
 
 
-@njit(**JIT)
+@njit(**HOT)
 def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
     """Spatial velocity of each body in its joint frame."""
     n = parent.shape[0]
@@ -324,7 +324,7 @@ def body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel):
             vel[i, off + a] += axis[i, a] * v[iv]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _solve_spd6(A, b, L, out):
     """out = A⁻¹ b for a symmetric positive definite 6×6 A, read on its lower triangle (Cholesky
     A = L Lᵀ; L is scratch and holds the inverse of its diagonal: 6 divisions, not 27)."""
@@ -351,7 +351,7 @@ def _solve_spd6(A, b, L, out):
         out[i] = x * L[i, i]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, v, tau, root_dI, root_f, vdot, ws):
     """Featherstone's articulated-body algorithm (Pinocchio's ``aba`` with a free-flyer root and
     no gravity): vdot (nv) for the joint transforms (R_rel, p_rel) of ``joint_transforms``.
@@ -489,7 +489,11 @@ def momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_re
 
 
 # ----------------------------------------------------------------------------- integration
-@njit(**JIT)
+
+aba_call = njit(**JIT)(aba.py_func)  # the same ABA behind a plain call for callers off the hot path (not inlined there)
+
+
+@njit(**HOT)
 def quat_exp_mul(q, w, out):
     """out = q ⊗ exp(w/2) (xyzw; w a rotation vector in the frame of q), normalised."""
     ang = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
@@ -509,7 +513,7 @@ def quat_exp_mul(q, w, out):
     out[0], out[1], out[2], out[3] = x / nrm, y / nrm, z / nrm, ww / nrm
 
 
-@njit(**JIT)
+@njit(**HOT)
 def integrate(kind, axis, idx_q, idx_v, q, theta, out):
     """out = q ⊕ θ (Pinocchio's ``integrate``: right composition with exp6 for the free flyer)."""
     n = kind.shape[0]
@@ -552,7 +556,7 @@ def integrate(kind, axis, idx_q, idx_v, q, theta, out):
             out[iq] = q[iq] + theta[iv]
 
 
-@njit(**JIT)
+@njit(**HOT)
 def dexpinv_neg(theta, v, out):
     """dexp⁻¹_{−θ}(v) = v + ½[θ, v] + 1/12 [θ, [θ, v]] on the free-flyer block (first 6),
     identity on the joints (``sms_cli.dynamics.integrator._dexpinv_neg``)."""
@@ -574,7 +578,7 @@ def dexpinv_neg(theta, v, out):
     out[5] = w2 + 0.5 * b2 + (p0 * b1 - p1 * b0) / 12.0
 
 
-@njit(**JIT)
+@njit(**HOT)
 def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                     neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
                     q, v, eta, etad, tau, vdot, etadd, ws):
@@ -701,7 +705,7 @@ def _minv_columns(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, 
         for a in range(nv):
             unit[a] = 0.0
         unit[cols[j]] = 1.0
-        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero_v, unit, root_dI, zero_f, col, ws)
         for a in range(nv):
             G[a, j] = col[a]
         for k in range(ne):

@@ -25,7 +25,7 @@ from sms_cli.sim.compiled.arm_laws import arm_model_terms, arm_torque, joint_ref
 from sms_cli.sim.compiled.attitude_laws import attitude_law, system_momentum, wheel_momentum
 from sms_cli.sim.compiled.control import (allocate_and_clip, clip_attitude_torque, error_angle, error_quaternion,
                                           limited_torque, may_reach_limit)
-from sms_cli.sim.compiled.dynamics import (aba, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
+from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, integrate, joint_transforms, mass_matrix,
                                            momenta_energy, quat_to_matrix, relative_poses, rkmk4_step, workspace,
                                            world_placements)
 from sms_cli.sim.compiled.disturbances import disturbance_wrench
@@ -61,7 +61,7 @@ def effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_
     for k in range(wheel_v.shape[0]):
         tau[:] = 0.0
         tau[wheel_v[k]] = 1.0
-        aba(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
+        aba_call(parent, kind, axis, inertia, leaf_IA, armature, idx_v, R_rel, p_rel, zero, tau, np.zeros((6, 6)), np.zeros(6),
                  col, ws)
         out[k] = 1.0 / col[wheel_v[k]]
 

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled import HOT, JIT
 from sms_cli.sim.compiled.dynamics import cross as _cross
 
 # law codes of ``momentum_law`` / ``momentum_lyapunov``
@@ -59,7 +59,7 @@ TERM_NAMES = ("W", "locked", "shape", "potential", "translation", "position_erro
 
 
 # ---------------------------------------------------------------------------- shared arithmetic
-@njit(**JIT)
+@njit(**HOT)
 def rotation_matrix(quat, R):
     """R (world ← base) of the quaternion [x, y, z, w] (Hamilton; normalised by |q|²)."""
     x, y, z, w = quat[0], quat[1], quat[2], quat[3]
@@ -107,7 +107,7 @@ def quaternion_potential(k, quat, ref, gamma):
     return k * (ex * ex + ey * ey + ez * ez)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _mat_vec(A, x, out):
     for i in range(A.shape[0]):
         s = 0.0
@@ -116,7 +116,7 @@ def _mat_vec(A, x, out):
         out[i] = s
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _matT_vec(A, x, out):
     for j in range(A.shape[1]):
         s = 0.0
@@ -125,7 +125,7 @@ def _matT_vec(A, x, out):
         out[j] = s
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _quad(x, A):
     """xᵀAx."""
     s = 0.0
@@ -137,7 +137,7 @@ def _quad(x, A):
     return s
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _quad_diag(x, par, at):
     """xᵀ diag(par[at:at+n]) x."""
     s = 0.0
@@ -375,7 +375,7 @@ def hierarchical_lyapunov(q, v, ref, wheels, mass, com_base, Tv, I, G, J, Lam, M
     out[T_RESIDUAL] = (gamma[0] * mu[0] + gamma[1] * mu[1] + gamma[2] * mu[2]) + _quad_bilinear(wd, X, y)
 
 
-@njit(**JIT)
+@njit(**HOT)
 def _quad_bilinear(x, A, y):
     """xᵀAy."""
     s = 0.0
