@@ -14,4 +14,5 @@ if [ -n "$missing" ] && command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]
     || echo "could not install$missing (see .venv/chromium-install.log): the browser and PDF tests will be skipped" >&2
 fi
 warm_kernels missions missions/*.yaml
-exec .venv/bin/python -m pytest "$@"
+# the slowest tests are listed at the end, to keep the run within its 15-minute budget on 2 cores
+exec .venv/bin/python -m pytest --durations=20 "$@"
