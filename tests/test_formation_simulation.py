@@ -161,6 +161,8 @@ def test_s6_through_the_cli(tmp_path):
         topics = {c.topic for c in reader.get_summary().channels.values()}
         robot = next(m for _, _, m in reader.iter_messages(topics=["/robot_description"]))
         timing = next(m.metadata for m in reader.iter_metadata() if m.name == "sms.timing")
+        run = next(m.metadata for m in reader.iter_metadata() if m.name == "run")
+    assert run["steps"] == str(sim["steps"]) == "6000"  # 300 s at dt 0.05 s: every plant step, not the samples
     assert timing["replayable"] == "no" and "internal shape pair" in timing["not_replayable_because"]
     assert {"/tf", "/locked/twist", "/shape/twist", "/momentum/total", "/momentum/relative", "/energy"} <= topics
     assert b"client/bus" in robot.data and b"servicer/bus" in robot.data
@@ -325,9 +327,12 @@ def test_an_interrupted_two_spacecraft_run_keeps_what_ran(tmp_path, monkeypatch)
     rows = (tmp_path / "relative_motion.csv").read_text().splitlines()
     assert len(rows) - 1 == 500 or len(rows) - 1 == 501
     with open(tmp_path / "simulation.mcap", "rb") as f:
-        summary = make_reader(f).get_summary()
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        run = next(m.metadata for m in reader.iter_metadata() if m.name == "run")
     tf = next(c.id for c in summary.channels.values() if c.topic == "/tf")
     assert summary.statistics.channel_message_counts[tf] == len(rows) - 1
+    assert run["status"] == "interrupted" and run["steps"] == str(sim["steps"]) and 1990 <= sim["steps"] <= 2000
 
 
 S6_THRUSTERS = ROOT / "missions" / "vicariotto_s6_thrusters.yaml"

@@ -281,6 +281,8 @@ class FormationSimulation:
                 self._flush(rows)
             except KeyboardInterrupt:  # a second signal: the blocks already written stay
                 pass
+        if self.recorder is not None:
+            self.recorder.count_steps(k)  # its run.steps (the samples are picked here, not offered step by step)
         if self.progress:
             print(file=sys.stderr, flush=True)
         wall = time.perf_counter() - wall0

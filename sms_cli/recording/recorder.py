@@ -502,6 +502,11 @@ class McapRecorder:
             i += 1
         return np.array(picked, dtype=np.intp)
 
+    def count_steps(self, n: int) -> None:
+        """Add ``n`` plant steps to ``run.steps``, for a loop that picks its own samples and records
+        them with ``write_block`` without offering every step to ``select`` (the two-spacecraft loop)."""
+        self._calls += int(n)
+
     def write_block(self, times: np.ndarray, *, transforms: np.ndarray | None = None,
                     scalars: Mapping[str, Mapping[str, Any]] | None = None, relative: bool = False) -> None:
         """Record n samples at once (the rows ``select`` picked): ``times`` (n,) increasing,
