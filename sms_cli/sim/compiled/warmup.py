@@ -73,7 +73,8 @@ def warm(groups: list[list[KernelCall]], *, lanes: int | None = None, stream=Non
         return {"compiled": 0, "lanes": 0, "seconds": time.perf_counter() - t0}
     n_lanes = max(1, min(lanes or lanes_available(), len(cold)))
     stream.write(f"  compiling {n_cold} {what} kernel{'s' * (n_cold > 1)} on {n_lanes} core"
-                 f"{'s' * (n_lanes > 1)} (first run after an install only; cached for later runs; `sms warmup` does it ahead)...\n")
+                 f"{'s' * (n_lanes > 1)} (first run after an install only; cached for later runs; "
+                 "`sms warmup` does it ahead)...\n")
     stream.flush()
     progress = stream is sys.stderr  # the workers share this process's stderr
     with WorkerPool(n_lanes - 1) as pool:
