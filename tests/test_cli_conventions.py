@@ -353,7 +353,9 @@ def test_completion_script_loads_in_bash():
 def test_simulate_compiled_engine_refusal_leaves_no_recording(tmp_path):
     m = tmp_path / "m.yaml"
     m.write_text(f"extends: {MISSIONS / 'chevallard_deploy_track.yaml'}\nname: chevallard_deploy_track\n"
-                 "simulation: {engine: compiled, sensors: {joints: {noise: 1.0e-4}}}\n")  # noisy sensors: refused
+                 "appendages: [{name: panel, link: base_link, modes: [{frequency: 0.5 Hz, damping: 0.005, "
+                 "participation: [0, 0, 0, 0, 0, 2.0]}]}]\n"
+                 "simulation: {engine: compiled}\n")  # flexible modes without NDI: refused
     out = tmp_path / "out"
     r = run_cli("simulate", m, "-o", out)
     assert r.exit_code == 2 and "the compiled engine cannot run this mission" in r.stderr, r.output

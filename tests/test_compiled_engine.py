@@ -224,16 +224,17 @@ def test_divergence_stops_both_engines_at_the_same_step(tmp_path):
 def test_engine_choice(tmp_path):
     from sms_cli.sim.engine import Simulation
 
-    from sms_cli.sim.schema import NoiseSpec
-
-    loaded = load_mission(ROOT / "missions" / "chevallard_deploy_track.yaml")
+    path = tmp_path / "flexible.yaml"  # a flexible panel without NDI: the compiled loop refuses the model
+    path.write_text(f"extends: {ROOT / 'missions' / 'chevallard_deploy_track.yaml'}\nname: flexible\nappendages:\n"
+                    "  - {name: panel, link: base_link, modes: [{frequency: 0.5 Hz, damping: 0.005, "
+                    "participation: [0, 0, 0, 0, 0, 2.0]}]}\n")
+    loaded = load_mission(path)
     sm = compile_system(loaded)
     spec = loaded.mission.simulation
-    spec = spec.model_copy(update={"sensors": spec.sensors.model_copy(update={"joints": NoiseSpec(noise=1e-4)})})
     with pytest.raises(InputError) as exc:
         Simulation(sm, spec.model_copy(update={"engine": "compiled"}), None, progress=False).run()
     assert "compiled engine cannot run this mission" in exc.value.render() and exc.value.exit_code == 2
-    assert "sensors are noisy" in exc.value.render()
+    assert "the model has flexible modes" in exc.value.render()
     assert Simulation(sm, spec, None, progress=False).compiled_unsupported() is not None
 
 

@@ -74,7 +74,7 @@ SIGNATURES = textwrap.dedent('''
     import sms_cli.sim.compiled.control as C, sms_cli.sim.compiled.attitude_laws as A, sms_cli.sim.compiled.arm_laws as R
     import sms_cli.sim.compiled.momentum_laws as Mo, sms_cli.sim.compiled.momentum_control as Mc
     import sms_cli.sim.compiled.profiles as Pf, sms_cli.sim.compiled.held_base as Hb, sms_cli.sim.compiled.resolved_rate as Rr
-    import sms_cli.sim.compiled.disturbances as Di
+    import sms_cli.sim.compiled.disturbances as Di, sms_cli.sim.compiled.sensors as Se
 
     loaded = load_mission(sys.argv[1])
     sm = compile_system(loaded)
@@ -87,7 +87,7 @@ SIGNATURES = textwrap.dedent('''
     with rec:
         sim = Simulation(sm, spec, rec, False, results_dir=sys.argv[3], mission_dir=loaded.path.parent)
         sim.warm_up()
-        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo, Mc, Pf, Hb, Rr, Di) for n in dir(m)
+        kernels = {getattr(m, n) for m in (D, L, B, C, A, R, Mo, Mc, Pf, Hb, Rr, Di, Se) for n in dir(m)
                    if hasattr(getattr(m, n), "signatures")}
         before = {k.py_func.__name__: len(k.signatures) for k in kernels}
         res = sim.run()
@@ -106,6 +106,7 @@ SIGNATURES = textwrap.dedent('''
                                              ("missions/caldera_eo", "compiled"),
                                              ("missions/chevallard_deploy_track", "compiled"),
                                              ("tests/data/noisy_caldera_eo", "python, compiled plant"),
+                                             ("tests/data/noisy_caldera_s2_arm", "compiled"),
                                              ("tests/data/compiled_disturbances", "compiled"),
                                              ("tests/data/compiled_law_backstepping", "python"),
                                              ("tests/data/momentum_offset", "python"),
@@ -119,7 +120,8 @@ def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     the online inertia J(q) with an arm (astrobee_slew_backstepping), a smooth attitude profile (caldera_eo), a held
     base with joint stops and end-effector tracking (chevallard_deploy_track; its first phase: the held base),
     disturbances (compiled_disturbances); the Python loop with the compiled plant, an arm law on its model, joint
-    stops and a recording (noisy_caldera_eo); the Python loop running an attitude law's kernels, with the
+    stops, a recording and a noisy gyro (noisy_caldera_eo: its flexible panel keeps it off the compiled loop); the
+    compiled loop with noisy, biased sensors (noisy_caldera_s2_arm); the Python loop running an attitude law's kernels, with the
     SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W; the compiled loop
     running a momentum law, its W each step and at each phase start; with real thrusters, the law's quantities at the
     current mass)."""

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 
@@ -19,15 +17,6 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def quat_conj(q: np.ndarray) -> np.ndarray:
     return q * np.array([-1.0, -1.0, -1.0, 1.0])
-
-
-def quat_exp(rotvec: np.ndarray) -> np.ndarray:
-    """Unit quaternion of a rotation vector (rad)."""
-    angle = float(np.linalg.norm(rotvec))
-    if angle < 1e-12:
-        return np.array([0.5 * rotvec[0], 0.5 * rotvec[1], 0.5 * rotvec[2], 1.0])
-    s = math.sin(0.5 * angle) / angle
-    return np.array([s * rotvec[0], s * rotvec[1], s * rotvec[2], math.cos(0.5 * angle)])
 
 
 def quat_log(q: np.ndarray) -> np.ndarray:

@@ -362,6 +362,8 @@ class Simulation:
                                    arm_law=self.arm_law, rr=self.rr, disturbed=bool(self.spec.disturbances))
             if self.ndi is not None:  # the NDI law's kernels (sms_cli.sim.compiled.ndi_law)
                 groups.append(self.ndi.warm_calls())
+            if self.sensors.noisy:  # the measurement's kernel (Sensors.measure)
+                groups.append([self.sensors.warm_call()])
         return groups
 
     # ------------------------------------------------------------------ main loop

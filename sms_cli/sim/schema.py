@@ -216,7 +216,7 @@ class SimulationSpec(StrictModel):
     settle_tolerance: Angle = Field(0.01, description="attitude error band for settling time (rad)")
     engine: Literal["auto", "compiled", "python"] = Field(
         "auto", description="auto: the compiled loop (numba) when the mission fits it (rigid base, reaction wheels, "
-                            "mrp_feedback, no arm, noiseless sensors, step references), else the Python loop; "
+                            "mrp_feedback, no arm, step references), else the Python loop; "
                             "compiled: require it; python: always the Python loop (the reference)")
     phases: list[PhaseSpec] = Field(min_length=1)
 

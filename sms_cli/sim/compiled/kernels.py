@@ -104,6 +104,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     from sms_cli.sim.compiled.dynamics import workspace
     from sms_cli.sim.compiled.loop import RR_N, X_N
     from sms_cli.sim.compiled.profiles import PROF_N
+    from sms_cli.sim.compiled.sensors import SENS_JOINT_BIAS
     from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
 
     plant_tree = tree[:7] + tree[9:]  # without mass and com
@@ -117,7 +118,9 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     mod = "sms_cli.sim.compiled"
     n_arm = len(sm.arm)
     mom_args, thr_args = NO_MOMENTUM_LAW, NO_THRUSTERS  # the run's own types (None: those blocks pruned)
+    sens_args = (False, np.zeros(SENS_JOINT_BIAS + n_arm), np.zeros((0, 0)))  # noiseless sensors
     if loop is not None:
+        sens_args = (loop.sensors.noisy, loop.sensors.par.copy(), np.zeros((0, loop.sensors.width)))
         arm_args, stop_args = loop._arm_args(), loop._stop_args()
         mom_args = loop._momentum_args()
         mom_args = (mom_args[0], mom_args[1], mom_args[2].copy(), mom_args[3].copy(), mom_args[4].copy())
@@ -137,6 +140,8 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
                                                        v.copy(), np.zeros(ns), np.zeros(ns), ev, np.zeros(1, dtype=np.int64),
                                                        ws, rigid[:4], none_f, none_f, none_f, none_f, False), cost=6.0)]
     return stops + [
+        KernelCall(f"{mod}.sensors:measure_state", (sens_args[1], np.zeros(sens_args[2].shape[1]), arm_args[0], arm_args[1], q,
+                                                     v, q.copy(), v.copy()), cost=0.4),
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
@@ -144,7 +149,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
             *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
             False, False, np.inf, *NO_LAW, np.zeros(PROF_N), -1.0, 0.0, *mom_args, *arm_args, *ref, *stop_args,
             False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), np.zeros((0, 10)),
-            *thr_args, 0.0, 1.0, 1, 0, 0, 1e9,
+            *thr_args, *sens_args, 0.0, 1.0, 1, 0, 0, 1e9,
             q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
             np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)), np.empty((0, 3)),
             np.empty(0), np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)),

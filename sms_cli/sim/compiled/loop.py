@@ -7,7 +7,8 @@ It is the same sequence as ``sms_cli.sim.engine.Simulation.run`` for the mission
 engine accepts (``runner.unsupported_reason``): rigid free-flying base, reaction wheels, an arm with
 its law (``arm_laws.arm_torque``) following joint waypoints (``arm_laws.joint_reference``) and its
 joint stops (``stops.stop_step``), or a momentum law of Vicariotto 2023 (``momentum_control``), real thrusters
-(``thrusters.thruster_step``, the allocation by the caller), noiseless sensors, disturbance wrenches
+(``thrusters.thruster_step``, the allocation by the caller), sensor noise and bias (``sensors.measure_state``),
+disturbance wrenches
 (``disturbances``); step or smooth attitude references (``profiles``), held-base phases (``held_base``) and
 end-effector tracking (``resolved_rate``).
 tests/test_compiled_engine.py and tests/test_compiled_arm.py check the two engines against each other.
@@ -32,7 +33,8 @@ from sms_cli.sim.compiled.disturbances import disturbance_wrench
 from sms_cli.sim.compiled.held_base import held_base_reaction
 from sms_cli.sim.compiled.momentum_control import locked_model, locked_velocity, lyapunov_terms, momentum_control
 from sms_cli.sim.compiled.profiles import attitude_reference, reference_rates
-from sms_cli.sim.compiled.resolved_rate import track_end_effector
+from sms_cli.sim.compiled.resolved_rate import frame_origin, track_end_effector
+from sms_cli.sim.compiled.sensors import measure_state
 from sms_cli.sim.compiled.stops import stop_step
 from sms_cli.sim.compiled.thrusters import USED, thruster_step
 
@@ -101,6 +103,8 @@ def run_ticks(
     # real thrusters (thrusters.thruster_step): on, probe (stop before the plant steps with the commanded wrench in
     # thr_cmd), the set's tuple, the firing pattern (start, on-times), state in/out, commanded wrench out
     thr_on, thr_probe, thr, thr_t0, thr_on_times, thr_state, thr_cmd,
+    # sensors (sensors.measure_state): noisy or biased, parameters, the normals of each tick (n_ticks × K)
+    sensed, sens_par, sens_noise,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate,
     # state, in/out
@@ -149,7 +153,11 @@ def run_ticks(
     first tick's control with that wrench in thr_cmd (the caller restores the laws' state it changed), then the
     call with the pattern (thr_t0, thr_on_times) steps the plant through the firings, the base body losing the
     propellant spent (the tree's inertia, mass and com arrays change in place); the momentum law then takes its
-    locked/shape quantities from the mass matrix at the current mass (``locked_model``)."""
+    locked/shape quantities from the mass matrix at the current mass (``locked_model``).
+
+    Sensors (``sensed``): the laws (attitude, momentum, arm, resolved rate) see the measured state of each tick
+    (``sensors.measure_state`` with the tick's row of ``sens_noise``), the trace, the held base's reaction, the wheel
+    model and the plant the true one."""
     nv = v.shape[0]
     nq = q.shape[0]
     nw = wheel_v.shape[0]
@@ -211,12 +219,24 @@ def run_ticks(
     # None`` on an argument): the other missions do not compile the momentum laws and the thrusters' step
     law_model = mom_model
     M_mom = np.empty((nv, nv))
+    # the measured state the laws see (qs, vs) and, with noisy sensors, the true state's transforms and momenta
+    # for the trace (R_t, p_t, me_t; without: the laws' own)
+    q_m, v_m = np.empty(nq), np.empty(nv)
+    R_t = np.empty((n, 3, 3)) if sensed else R_rel
+    p_t = np.empty((n, 3)) if sensed else p_rel
+    me_t = np.empty(10) if sensed else me
+    oR_t, op_t = np.empty((n, 3, 3)), np.empty((n, 3))
     t = t0
     steps = 0
     for k in range(n_ticks):
         tick = tick0 + k
+        if sensed:
+            measure_state(sens_par, sens_noise[k], arm_q, arm_v, q, v, q_m, v_m)
+            qs, vs = q_m, v_m
+        else:
+            qs, vs = q, v
         for a in range(3):
-            omega[a] = v[3 + a]
+            omega[a] = vs[3 + a]
         for i in range(nw):
             ws[i] = v[wheel_v[i]]
         attitude_reference(att_prof, t - t_phase0, q_ref, w_ref, wd_ref)
@@ -225,12 +245,15 @@ def run_ticks(
         T[:] = 0.0
         tau_w[:] = 0.0
         sat = False
-        joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
-        momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
+        joint_transforms(kind, axis, place_R, place_p, idx_q, qs, R_rel, p_rel)
+        momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, vs, me, work)
+        if sensed:
+            joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_t, p_t)
+            momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_t, p_t, v, me_t, work)
         mom_on = False
         if mom_model is not None:
             if mom_vary:
-                joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+                joint_transforms(kind, axis, place_R, place_p, idx_q, qs, R_rel, p_rel)
                 mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_mom)
                 law_model = locked_model(M_mom, wheel_v)
             if mom_code > 0:
@@ -238,29 +261,29 @@ def run_ticks(
                 tr_lyap[k] = mom_W[0]
             if law_on and mom_code > 0:
                 mom_on = True
-                sat = momentum_control(mom_code, q, v, q_ref, law_model, mom_par, mom_mem, max_torque, tau_w, wrench)
+                sat = momentum_control(mom_code, qs, vs, q_ref, law_model, mom_par, mom_mem, max_torque, tau_w, wrench)
                 for a in range(3):
                     T[a] = wrench[3 + a]
                 for a in range(6):
                     tr_wrench[k, a] = wrench[a]
         if law_on and not mom_on:
-            error_quaternion(q[3:7], q_ref, qe)
+            error_quaternion(qs[3:7], q_ref, qe)
             reference_rates(qe, w_ref, wd_ref, om_r, dom_r)
             if body_code == 2:  # SystemBody.inertia, inertia_rate
                 system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
                 for a in range(nv):
-                    dq[a] = fd_step * v[a]
+                    dq[a] = fd_step * vs[a]
                 for sgn in range(2):
-                    integrate(kind, axis, idx_q, idx_v, q, dq, q_fd)
+                    integrate(kind, axis, idx_q, idx_v, qs, dq, q_fd)
                     joint_transforms(kind, axis, place_R, place_p, idx_q, q_fd, R_fd, p_fd)
                     system_inertia(parent, kind, axis, inertia, armature, idx_v, R_fd, p_fd, elim, M_full, J_pm[sgn])
                     for a in range(nv):
-                        dq[a] = -fd_step * v[a]
+                        dq[a] = -fd_step * vs[a]
                 for a in range(3):
                     for b in range(3):
                         Jd_on[a, b] = (J_pm[0, a, b] - J_pm[1, a, b]) / (2.0 * fd_step)
             if body_code >= 1:
-                system_momentum(q[3:7], me[3:6], J_on if body_code == 2 else J_law, omega, h)
+                system_momentum(qs[3:7], me[3:6], J_on if body_code == 2 else J_law, omega, h)
             else:
                 wheel_momentum(G_law, Js_law, omega, ws, h)
             if body_code == 2:
@@ -280,9 +303,13 @@ def run_ticks(
                 for a in range(3):
                     target[a] = rr_par[RR_TARGET + a] + rr_par[RR_VEL + a] * (t - t_phase0)
                 ee_err = track_end_effector(parent, kind, axis, idx_v, oR_w, op_w, ee_joint, ee_R, ee_p, M_full, arm_v, wheel_v,
-                                            v, target, rr_par[RR_VEL:RR_VEL + 3], rr_par[RR_GAIN:RR_GAIN + 3],
+                                            vs, target, rr_par[RR_VEL:RR_VEL + 3], rr_par[RR_GAIN:RR_GAIN + 3],
                                             rr_par[RR_DAMPING], rr_par[RR_THRESHOLD], rr_rate,
                                             rr_par[RR_GENERALIZED] != 0.0, J_ee, Jm_rr, Jr_rr, ref_qd, ee_pos)
+                if sensed:  # the trace's error: the true end effector's
+                    world_placements(parent, R_t, p_t, oR_t, op_t)
+                    frame_origin(oR_t, op_t, ee_joint, ee_p, ee_pos)
+                    ee_err = math.sqrt((target[0] - ee_pos[0]) ** 2 + (target[1] - ee_pos[1]) ** 2 + (target[2] - ee_pos[2]) ** 2)
                 for i in range(n_arm):
                     q_track[i] = q_track[i] + ref_qd[i] / rr_par[RR_RATE]
                     ref_q[i] = q_track[i]
@@ -290,13 +317,13 @@ def run_ticks(
             else:
                 joint_reference(ref_times, ref_points, ref_step, t - t_phase0, ref_q, ref_qd, ref_qdd)
             for i in range(n_arm):
-                q_arm[i] = q[arm_q[i]]
-                qd_arm[i] = v[arm_v[i]]
+                q_arm[i] = qs[arm_q[i]]
+                qd_arm[i] = vs[arm_v[i]]
                 tau_m[i] = 0.0
             if arm_code >= 0:
                 if model_law:
                     mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
-                    bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, n_full)
+                    bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, vs, n_full)
                     arm_model_terms(M_full, n_full, arm_a, arm_p, Mstar, hstar)
                 arm_torque(arm_code, arm_par, arm_wrap, ref_q, ref_qd, ref_qdd, q_arm, qd_arm, Mstar, hstar, tau_m)
                 for i in range(n_arm):  # actuators.clip_joint_torque
@@ -304,11 +331,11 @@ def run_ticks(
                     if abs(tau_m[i]) > lim * (1 + 1e-12):
                         sat = True
                     tau_m[i] = min(max(tau_m[i], -lim), lim)
-            for i in range(n_arm):
-                tr_arm[k, ARM_ERR * n_arm + i] = ref_q[i] - q_arm[i]
+            for i in range(n_arm):  # the true joints
+                tr_arm[k, ARM_ERR * n_arm + i] = ref_q[i] - q[arm_q[i]]
                 tr_arm[k, ARM_REF * n_arm + i] = ref_q[i]
                 tr_arm[k, ARM_RATE_REF * n_arm + i] = ref_qd[i]
-                tr_arm[k, ARM_RATE * n_arm + i] = qd_arm[i]
+                tr_arm[k, ARM_RATE * n_arm + i] = v[arm_v[i]]
                 tr_arm[k, ARM_TORQUE * n_arm + i] = tau_m[i]
                 tr_arm[k, ARM_STOP_TIME * n_arm + i] = 0.0
             for j in range(ns):  # at the tick's state; with stops: the largest over its steps (below)
@@ -330,8 +357,8 @@ def run_ticks(
         for a in range(6):
             tr_x[k, X_REACTION + a] = math.nan
         if held:  # the support's wrench under the tick's wheel and arm torques
-            mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
-            bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, v, n_full)
+            mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_t, p_t, M_full)
+            bias_forces(parent, kind, axis, inertia, idx_v, R_t, p_t, v, n_full)
             for i in range(nw):
                 tau_h[wheel_v[i]] = tau_w[i]
             for i in range(n_arm):
@@ -348,9 +375,9 @@ def run_ticks(
         for a in range(3):
             tr_bt[k, a] = T[a]
         for a in range(3):
-            tr_mom[k, a] = me[a]
-            tr_mom[k, 3 + a] = me[6 + a]
-        tr_energy[k] = me[9]
+            tr_mom[k, a] = me_t[a]
+            tr_mom[k, 3 + a] = me_t[6 + a]
+        tr_energy[k] = me_t[9]
         if nw and tick % 10 == 0:
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)

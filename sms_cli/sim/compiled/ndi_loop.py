@@ -26,6 +26,7 @@ from sms_cli.sim.compiled.loop import (ARM_BLOCKS, ARM_ERR, ARM_RATE, ARM_RATE_R
                                        effective_wheel_inertia)
 from sms_cli.sim.compiled.ndi_law import (SATURATED, augmented_bias, augmented_mass, ndi_command, ndi_observe,
                                           ndi_velocity)
+from sms_cli.sim.compiled.sensors import measure_state
 from sms_cli.sim.compiled.stops import stop_step
 
 MODAL_LIMIT = 5  # a modal amplitude exceeded the divergence limit
@@ -114,6 +115,8 @@ def run_ticks_ndi(
     arm_q, arm_v, effort, ref_times, ref_points, ref_step, t_phase0,
     # joint stops (stops.stop_step): on, table, restitution; state in/out
     stop_on, sj_arm, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since,
+    # sensors (sensors.measure_state): noisy or biased, parameters, the normals of each tick (n_ticks × K)
+    sensed, sens_par, sens_noise,
     # timing and limits
     t0, dt, n_sub, tick0, n_ticks, max_rate, max_modal,
     # state, in/out
@@ -130,7 +133,9 @@ def run_ticks_ndi(
     ``ndi_on``) from M and r at the estimated state (``augmented_mass``, ``ndi_velocity``,
     ``augmented_bias``, ``ndi_command``), clipped to the wheel and joint limits, the observer propagated
     with them (``ndi_observe``); the trace (``tr_arm`` blocks as ``run_ticks``, ``tr_wrr`` the law's desired
-    wheel rates, ``tr_modal`` max |η|, momenta and energy with the modal terms); then the plant sub-steps."""
+    wheel rates, ``tr_modal`` max |η|, momenta and energy with the modal terms); then the plant sub-steps.
+    Sensors (``sensed``): the law sees the measured state of each tick (``sensors.measure_state`` with the tick's
+    row of ``sens_noise``: ω, the attitude, the arm's angles and rates), the trace and the plant the true one."""
     nv = v.shape[0]
     nq = q.shape[0]
     nx = nv + eta.shape[0]
@@ -164,30 +169,38 @@ def run_ticks_ndi(
     Rb = np.empty((3, 3))
     tree_a = (parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v)
     n_f = flex.shape[0]
+    q_m, v_m = np.empty(nq), np.empty(nv)  # the measured state (noisy sensors)
     t = t0
     steps = 0
     for k in range(n_ticks):
         tick = tick0 + k
+        if sensed:
+            measure_state(sens_par, sens_noise[k], arm_q, arm_v, q, v, q_m, v_m)
+            qs, vs = q_m, v_m
+        else:
+            qs, vs = q, v
         for a in range(3):
-            omega[a] = v[3 + a]
+            omega[a] = vs[3 + a]
         for i in range(nw):
             ws[i] = v[wheel_v[i]]
             tau_w[i] = 0.0
         sat = False
-        joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+        joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)  # the trace's momenta: the true state
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, v, me, work)
         modal_momentum_energy(q, v, eta, etadot, modal_B, neg_omega2, mass, com, work[16], work[17], me)
+        if sensed:  # the law's model: the measured state
+            joint_transforms(kind, axis, place_R, place_p, idx_q, qs, R_rel, p_rel)
         if n_arm:
             joint_reference(ref_times, ref_points, ref_step, t - t_phase0, ref_q, ref_qd, ref_qdd)
         for i in range(n_arm):
-            q_arm[i] = q[arm_q[i]]
+            q_arm[i] = qs[arm_q[i]]
             tau_m[i] = 0.0
         if ndi_on:
             augmented_mass(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, modal_B, M)
-            ndi_velocity(M, lin, ang, act, flex, omega, v, x_hat, flags, x)
+            ndi_velocity(M, lin, ang, act, flex, omega, vs, x_hat, flags, x)
             augmented_bias(parent, kind, axis, inertia, idx_v, R_rel, p_rel, modal_B, neg_omega2, neg_2zo, x[:nv],
                            x_hat[n_f - ne:n_f], x[nv:], r)
-            ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, q[3:7], omega, v, q_arm, q_ref,
+            ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, qs[3:7], omega, vs, q_arm, q_ref,
                         zero3, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau_a)
             sat = flags[SATURATED] != 0
             for i in range(nw):  # actuators.WheelArray.clip_torque
@@ -207,7 +220,7 @@ def run_ticks_ndi(
         # trace (state at the tick)
         if n_arm:
             for i in range(n_arm):
-                tr_arm[k, ARM_ERR * n_arm + i] = ref_q[i] - q_arm[i]
+                tr_arm[k, ARM_ERR * n_arm + i] = ref_q[i] - q[arm_q[i]]
                 tr_arm[k, ARM_REF * n_arm + i] = ref_q[i]
                 tr_arm[k, ARM_RATE_REF * n_arm + i] = ref_qd[i]
                 tr_arm[k, ARM_RATE * n_arm + i] = v[arm_v[i]]

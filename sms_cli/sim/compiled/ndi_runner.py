@@ -152,14 +152,16 @@ class NdiCompiledSimulation(CompiledSimulation):
                     st_t, st_q, st_v = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv))
                     st_eta, st_etadot, st_tw = np.empty((ms, ne)), np.empty((ms, ne)), np.empty((ms, nw))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
+                    noise = self.sensors.draw(m)  # the normals of the slice's ticks (sensors.measure_state)
                     ticks, n_steps, code = run_ticks_ndi(
                         *tree, *self.modal, *wheel_args, *self._ndi_args(ndi_on), q_ref, settle_tol, float(phase.settle_time),
                         arm_q, arm_v, effort, ref_times, ref_points, joints.step, t_phase0, *stop_args,
-                        t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
+                        self.sensors.noisy, self.sensors.par, noise, t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         float(spec.divergence.max_modal_amplitude), q, v, eta, etadot, eff, settled,
                         tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"], tr["saturated"], tr["momentum"],
                         tr["energy"], tr["arm"], tr["wheel_rate_ref"], tr["modal_peak"], st_t, st_q, st_v, st_eta, st_etadot,
                         st_tw, ev, ev_n)
+                    self.sensors.rewind(ticks, m)  # a settled phase: the next phase's ticks draw on from here
                     piece = {k: a[:ticks] for k, a in tr.items()}
                     piece["phase"] = np.full(ticks, ip)
                     piece["segment"] = np.full(ticks, segment)
@@ -248,13 +250,15 @@ class NdiCompiledSimulation(CompiledSimulation):
         e1 = np.empty(0)
         loop = [
             *step,
+            self.sensors.warm_call(),
             KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, Bt, BtB, no2, n2z, none_i, none_i, none_f, none_f, none_f, q, v,
                                                       eta, ed, np.zeros(sm.nv), 0.01, q.copy(), v.copy(), eta.copy(), ed.copy(),
                                                       ws, none_i), cost=5.0),
             KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
             KernelCall(f"{mod}.ndi_loop:run_ticks_ndi", (
                 *tree, *self.modal, wheel_v, np.ones(nw), np.ones(nw), 0.0, 0.0, True, *law_state, q[3:7].copy(), -1.0, 0.0,
-                arm[0], arm[1], arm[7], np.zeros(2), np.zeros((2, n_arm)), False, 0.0, *stop_args, 0.0, 0.01, 1, 0, 0, 1e9, 1e3,
+                arm[0], arm[1], arm[7], np.zeros(2), np.zeros((2, n_arm)), False, 0.0, *stop_args,
+                self.sensors.noisy, self.sensors.par.copy(), np.zeros((0, self.sensors.width)), 0.0, 0.01, 1, 0, 0, 1e9, 1e3,
                 q.copy(), v.copy(), eta.copy(), ed.copy(), np.ones(nw), np.array([np.nan]), e1, e1, np.empty((0, nw)),
                 np.empty((0, nw)), np.empty(0, dtype=np.bool_), np.empty((0, 6)), e1, np.empty((0, 7 * n_arm + 6)),
                 np.empty((0, nw)), e1, e1, np.empty((0, sm.nq)), np.empty((0, sm.nv)), np.empty((0, ne)), np.empty((0, ne)),

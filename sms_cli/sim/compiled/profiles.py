@@ -21,6 +21,23 @@ PROF_Q0, PROF_ROT, PROF_T, PROF_QT, PROF_N = 0, 4, 7, 8, 12
 
 
 @njit(**JIT)
+def quat_mul_exp(ax, ay, az, aw, r0, r1, r2, out):
+    """out = a ⊗ exp(r) (xyzw, Hamilton product; r a rotation vector in rad, in the frame of a): THE
+    quaternion exponential of the project, exp(r) = [sin(|r|/2) r/|r|, cos(|r|/2)], [r/2, 1] to first order
+    below |r| = 1e-12; not renormalised. The attitude profiles and the sensors' attitude error use it."""
+    angle = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    if angle < 1e-12:
+        bx, by, bz, bw = 0.5 * r0, 0.5 * r1, 0.5 * r2, 1.0
+    else:
+        s = math.sin(0.5 * angle) / angle
+        bx, by, bz, bw = s * r0, s * r1, s * r2, math.cos(0.5 * angle)
+    out[0] = aw * bx + ax * bw + ay * bz - az * by
+    out[1] = aw * by - ax * bz + ay * bw + az * bx
+    out[2] = aw * bz + ax * by - ay * bx + az * bw
+    out[3] = aw * bw - ax * bx - ay * by - az * bz
+
+
+@njit(**JIT)
 def attitude_reference(prof, tau, q, w, wd):
     """The reference at τ s from the phase start: quaternion q (xyzw), ω_ref and ω̇_ref (rad/s, rad/s²,
     reference frame) into q, w, wd."""
@@ -33,18 +50,8 @@ def attitude_reference(prof, tau, q, w, wd):
             wd[a] = 0.0
         return
     p, dp, ddp = quintic(tau / T)
-    r0, r1, r2 = p * prof[PROF_ROT], p * prof[PROF_ROT + 1], p * prof[PROF_ROT + 2]
-    angle = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-    if angle < 1e-12:  # exp(r) = [r/2, 1] to first order (attitude_math.quat_exp)
-        bx, by, bz, bw = 0.5 * r0, 0.5 * r1, 0.5 * r2, 1.0
-    else:
-        s = math.sin(0.5 * angle) / angle
-        bx, by, bz, bw = s * r0, s * r1, s * r2, math.cos(0.5 * angle)
-    ax, ay, az, aw = prof[PROF_Q0], prof[PROF_Q0 + 1], prof[PROF_Q0 + 2], prof[PROF_Q0 + 3]
-    q[0] = aw * bx + ax * bw + ay * bz - az * by
-    q[1] = aw * by - ax * bz + ay * bw + az * bx
-    q[2] = aw * bz + ax * by - ay * bx + az * bw
-    q[3] = aw * bw - ax * bx - ay * by - az * bz
+    quat_mul_exp(prof[PROF_Q0], prof[PROF_Q0 + 1], prof[PROF_Q0 + 2], prof[PROF_Q0 + 3],
+                 p * prof[PROF_ROT], p * prof[PROF_ROT + 1], p * prof[PROF_ROT + 2], q)
     for a in range(3):
         w[a] = dp / T * prof[PROF_ROT + a]
         wd[a] = ddp / (T * T) * prof[PROF_ROT + a]

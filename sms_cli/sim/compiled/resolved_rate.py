@@ -21,13 +21,19 @@ from sms_cli.sim.compiled.tree import FREE_FLYER, PRISMATIC
 
 
 @njit(**JIT)
+def frame_origin(oR, op, joint, f_p, p_frame):
+    """The origin (world, m) of the frame at f_p in joint ``joint`` (tree index) at the world placements (oR, op)."""
+    for a in range(3):
+        p_frame[a] = op[joint, a] + oR[joint, a, 0] * f_p[0] + oR[joint, a, 1] * f_p[1] + oR[joint, a, 2] * f_p[2]
+
+
+@njit(**JIT)
 def frame_jacobian(parent, kind, axis, idx_v, oR, op, joint, f_R, f_p, p_frame, J):
     """The world-aligned Jacobian J (6 × nv, rows [ω; v]) of the frame placed (f_R, f_p) in joint ``joint``
     (tree index) at the joint world placements (oR, op) (``dynamics.world_placements``); its origin
     (world, m) into p_frame. Pinocchio's LOCAL_WORLD_ALIGNED frame Jacobian with the halves swapped."""
     nv = J.shape[1]
-    for a in range(3):
-        p_frame[a] = op[joint, a] + oR[joint, a, 0] * f_p[0] + oR[joint, a, 1] * f_p[1] + oR[joint, a, 2] * f_p[2]
+    frame_origin(oR, op, joint, f_p, p_frame)
     for r in range(6):
         for c in range(nv):
             J[r, c] = 0.0

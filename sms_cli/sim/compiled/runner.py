@@ -41,8 +41,6 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
         (ndi and bool(spec.disturbances), "the mission combines NDI with disturbances"),
         (att_spec is not None and not isinstance(att_spec, _compiled_laws()),
          f"the attitude law is {getattr(att_spec, 'law', att_spec)!r} (compiled: {', '.join(COMPILED_LAW_NAMES)})"),
-        (any(n.noise > 0 or np.any(np.asarray(n.bias) != 0)
-             for n in (spec.sensors.gyro, spec.sensors.attitude, spec.sensors.joints)), "the sensors are noisy"),
         (bool(sm.arm) and real_thrusters, "the mission has real thrusters (thrusters:) and an arm"),
         (real_thrusters and bool(spec.disturbances), "the mission combines real thrusters with disturbances"),
         (momentum and bool(spec.disturbances), "the mission combines a momentum law with disturbances"),
@@ -89,12 +87,14 @@ class CompiledSimulation:
                  chunk_steps: int = CHUNK_STEPS, arm_law=None, rr=None, att_spec=None):
         from sms_cli.sim.actuators import WheelArray
         from sms_cli.sim.engine import Progress
+        from sms_cli.sim.sensors import Sensors
 
         self.sm, self.spec, self.rec = sm, spec, recorder
         self.law = att_law
         self.arm_law = arm_law
         self.rr = rr  # the resolved rate (laws.resolved_rate.ResolvedRate) of the end-effector phases
         self.wheels = WheelArray(sm, spec.allocation, spec.wheel_friction)
+        self.sensors = Sensors(sm, spec.sensors)  # noise and bias: the normals of each slice's ticks (sensors.measure_state)
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
@@ -348,10 +348,12 @@ class CompiledSimulation:
                     st_thr, st_mom = thr.step_arrays(ms) if thr else (np.empty((0, 1)), np.empty((0, 9)))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
                     t_start, q_start = t, q.copy()  # the slice's first step starts here (its disturbances)
+                    noise = self.sensors.draw(m)
                     tr_rows = [tr[k] for k in ("t", "att_err", "wheel_speed", "wheel_torque", "saturated", "base_torque",
                                                "momentum", "energy", "arm", "x", "locked", "lyapunov", "wrench")]
 
                     def call(k0, mk, s0, t0, thr_args, _tr=tr_rows, _st=(st_t, st_q, st_v, st_tw, st_lyap), _s2=(st_thr, st_mom),
+                             _noise=noise,
                              _phase=(law_on, thrusters, att.params, settle_tol, phase, ref_times, ref_points, joints, t_phase0, tick0,
                                      rr_args)):
                         """run_ticks on the slice's ticks k0.. (mk of them) and steps s0.., from time t0."""
@@ -360,7 +362,8 @@ class CompiledSimulation:
                         return run_ticks(
                             *self._tree_args(), *wheel_args, law_on_, thrusters_, torque_limit, *law_args, att_prof_, settle_tol_,
                             float(phase_.settle_time), *mom_args, *arm_args, ref_times_, ref_points_, joints_.step, t_phase0_,
-                            *stop_args, *rr_args_, self.dist, *thr_args, t0, float(spec.dt), self.n_sub, tick0_ + k0, mk,
+                            *stop_args, *rr_args_, self.dist, *thr_args, self.sensors.noisy, self.sensors.par, _noise[k0:k0 + mk],
+                            t0, float(spec.dt), self.n_sub, tick0_ + k0, mk,
                             float(spec.divergence.max_rate), q, v, memory, eff, settled, *(a[k0:k0 + mk] for a in _tr),
                             *(a[s0:] for a in _st), *(a[s0:] for a in _s2), ev, ev_n)
 
@@ -379,6 +382,7 @@ class CompiledSimulation:
                                 break
                             ticks, n_steps = ticks + k1, n_steps + s1
                             t_now = float(st_t[n_steps - 1]) if n_steps else t_now
+                    self.sensors.rewind(ticks, m)  # a settled phase: the next phase's ticks draw on from here
                     piece = {k: a[:ticks] for k, a in tr.items() if mlaw or k not in ("locked", "lyapunov", "wrench")}
                     piece["phase"] = np.full(ticks, ip)
                     piece["segment"] = np.full(ticks, segment)
