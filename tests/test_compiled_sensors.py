@@ -246,3 +246,17 @@ def test_momentum_laws_and_real_thrusters_with_noisy_sensors_equal_the_python_lo
     path = tmp_path / "case.yaml"
     path.write_text(text.replace("simulation:\n", "simulation:\n  sensors: " + json.dumps(sensors) + "\n", 1))
     _assert_traces_equal(_traces(path, duration=4.0), momentum=case.startswith("momentum"))
+
+
+def test_a_joint_bias_of_another_length_than_the_arm_is_an_input_error_with_its_line(tmp_path):
+    """Three bias values on an arm of another number of joints: exit 2 at the bias's line, not numpy's error."""
+    from typer.testing import CliRunner
+
+    from sms_cli.cli import app
+
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"extends: {ROOT / 'missions' / 'chevallard_deploy_track.yaml'}\nsimulation:\n  sensors:\n"
+                       "    joints:\n      bias: [0.1, 0.1, 0.1]\n")
+    r = CliRunner().invoke(app, ["simulate", str(mission), "-o", str(tmp_path / "out")])
+    assert r.exit_code == 2, r.output
+    assert "m.yaml:5" in r.output and "the joint sensors' bias has 3 values" in r.output and "Traceback" not in r.output

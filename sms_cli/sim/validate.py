@@ -51,6 +51,12 @@ def validate_simulation(sm, loaded) -> None:
                     key = at + (verb, j)
                     problems.append(Problem(f"no payload named '{name}'", loaded.source.locate(key),
                                             ".".join(map(str, key)), _hint(name, payloads, "payloads")))
+    bias = spec.sensors.joints.bias
+    if not isinstance(bias, (int, float)) and len(bias) != len(arm):
+        key = ("simulation", "sensors", "joints", "bias")
+        problems.append(Problem(f"the joint sensors' bias has {len(bias)} values; the arm has {len(arm)} joint(s)",
+                                loaded.source.locate(key), ".".join(key),
+                                "give one value, added to every arm joint's angle and rate"))
     if problems:
         raise InputError(f"{loaded.path}: {len(problems)} problem(s) in the simulation section", problems)
     from sms_cli.thrusters.check import check_thrusters
