@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled.dynamics import joint_transforms, mass_matrix
 from sms_cli.sim.compiled.momentum_laws import T_W, momentum_law, momentum_lyapunov
 
 
@@ -52,14 +53,11 @@ def lyapunov_terms(code, q, v, ref, model, par, mem, out):
 
 
 @njit(**JIT)
-def locked_model(M, wheels):
-    """The model tuple of the rigid mass matrix M (nv × nv, ``mass_matrix``): ``sms_cli.dynamics.locked.locked_shape``
-    and ``_MomentumLaw._model_args`` for a base with wheels only, for a mass that changes (propellant spent):
-    A = M_vv⁻¹[M_vω, M_vs] (= Tv), I the translation-reduced angular block (symmetrised), Λ_s = I⁻¹(reduced
-    coupling), M_θ = M_ss − M_vsᵀA_s − (IΛ_s)ᵀΛ_s (symmetrised), J, G J = IΛ_s on the wheel columns."""
+def locked_reduction(M):
+    """(A, I, Λ_s) of a mass matrix M (n × n, base coordinates first: rigid nv, or augmented with the modes;
+    ``sms_cli.dynamics.locked._reduce``): A = M_vv⁻¹[M_vω, M_vs] (3, n − 3), I (3, 3) the translation-reduced
+    angular block red = M_ω· − M_ωv A (symmetrised; kg m², base frame, about the CoM), Λ_s = I⁻¹ red_s (3, n − 6)."""
     nv = M.shape[0]
-    ns = nv - 6
-    n = wheels.shape[0]
     A = np.linalg.solve(np.ascontiguousarray(M[0:3, 0:3]), np.ascontiguousarray(M[0:3, 3:]))
     red = np.empty((3, nv - 3))
     for i in range(3):
@@ -69,7 +67,46 @@ def locked_model(M, wheels):
     for i in range(3):
         for j in range(3):
             I[i, j] = 0.5 * (red[i, j] + red[j, i])
-    Lam_s = np.linalg.solve(I, np.ascontiguousarray(red[:, 3:]))
+    return A, I, np.linalg.solve(I, np.ascontiguousarray(red[:, 3:]))
+
+
+@njit(**JIT)
+def locked_velocities_of(Ms, xs, out):
+    """μ = ω + Λ_s ṡ (rad/s, base frame) of every shape coordinate ṡ = x[6:] (wheels, arm, modal rates) for the stacks
+    of mass matrices Ms (n, nx, nx) and velocities xs (n, nx) into out (n, 3): ``sms_cli.dynamics.locked.locked_velocity``."""
+    for s in range(Ms.shape[0]):
+        Lam_s = locked_reduction(Ms[s])[2]
+        x = xs[s]
+        for i in range(3):
+            acc = 0.0
+            for j in range(Lam_s.shape[1]):
+                acc += Lam_s[i, j] * x[6 + j]
+            out[s, i] = x[3 + i] + acc
+
+
+@njit(**JIT)
+def sample_locked_velocities(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, out):
+    """μ (rad/s, base frame) of rigid states (rows of qs, vs: no modes) into out (n, 3), each from the rigid mass
+    matrix at its q (``dynamics.mass_matrix``): ``sms_cli.dynamics.locked.locked_velocities`` of the compiled tree."""
+    n, nv = parent.shape[0], vs.shape[1]
+    R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
+    M = np.empty((1, nv, nv))
+    for s in range(qs.shape[0]):
+        joint_transforms(kind, axis, place_R, place_p, idx_q, qs[s], R_rel, p_rel)
+        mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M[0])
+        locked_velocities_of(M, vs[s:s + 1], out[s:s + 1])
+
+
+@njit(**JIT)
+def locked_model(M, wheels):
+    """The model tuple of the rigid mass matrix M (nv × nv, ``mass_matrix``): ``sms_cli.dynamics.locked.locked_shape``
+    and ``_MomentumLaw._model_args`` for a base with wheels only, for a mass that changes (propellant spent):
+    A = M_vv⁻¹[M_vω, M_vs] (= Tv), I the translation-reduced angular block (symmetrised), Λ_s = I⁻¹(reduced
+    coupling), M_θ = M_ss − M_vsᵀA_s − (IΛ_s)ᵀΛ_s (symmetrised), J, G J = IΛ_s on the wheel columns."""
+    nv = M.shape[0]
+    ns = nv - 6
+    n = wheels.shape[0]
+    A, I, Lam_s = locked_reduction(M)
     C_s = I @ Lam_s
     Mt = np.ascontiguousarray(M[6:, 6:]) - np.ascontiguousarray(M[0:3, 6:]).T @ np.ascontiguousarray(A[:, 3:]) \
         - np.ascontiguousarray(C_s.T) @ Lam_s
