@@ -27,7 +27,7 @@ from numba import njit
 
 from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import error_quaternion
-from sms_cli.sim.compiled.dynamics import bias_forces, mass_matrix, quat_to_matrix
+from sms_cli.sim.compiled.dynamics import bias_forces, cholesky, cholesky_solve, mass_matrix, quat_to_matrix
 
 # flags of the law's state (int64 array)
 STARTED, DISC_VALID, PINV_VALID, SATURATED, N_FLAGS = 0, 1, 2, 3, 4
@@ -176,6 +176,24 @@ def rotation_error(q_ref, q, out):
 
 
 @njit(**JIT)
+def least_norm(G, b):
+    """pinv(G) b, G (3 × n) of full row rank (the wheels' effect on ω̇0): Gᵀ (G Gᵀ)⁻¹ b by the Cholesky factor of the
+    3×3 G Gᵀ, the SVD's least-norm solution without one; ``np.linalg.pinv`` when G Gᵀ is singular or ill-conditioned
+    (cond > 1e10, fewer than three wheels)."""
+    n = G.shape[1]
+    S = G @ G.T
+    L = np.zeros((3, 3))
+    if n >= 3:
+        cholesky(S, 3, L)
+        lo, hi = min(L[0, 0], L[1, 1], L[2, 2]), max(L[0, 0], L[1, 1], L[2, 2])
+        if math.isfinite(L[0, 0] + L[1, 1] + L[2, 2]) and lo > 1e-5 * hi:  # cond(S) = cond(L)² < ~1e10
+            y = np.empty(3)
+            cholesky_solve(L, b, 3, y)
+            return G.T @ y
+    return np.linalg.pinv(G) @ b
+
+
+@njit(**JIT)
 def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, quat, omega, v, q_arm,
                 ref_quat, ref_omega, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau):
     """Actuator torques τ_a (wheels then arm; N m or N) of one control period into ``tau``, from M and
@@ -226,9 +244,9 @@ def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_l
         if wheel_ff:  # Kraiem 2022 (3.66) derivative: ẍ_u = −M_uu⁻¹ (M_ua q̈_a + r_u), ω̇0 = 0, least norm
             G = sol[3:6, :n_r].copy()
             rest = sol[3:6, n_r:na] @ v_cmd[n_r:] + sol[3:6, na]
-            ff = -(np.linalg.pinv(G) @ rest)
+            ff = least_norm(G, rest)
             for i in range(n_r):
-                v_cmd[i] += ff[i]
+                v_cmd[i] -= ff[i]
         for i in range(n_r):
             wheel_rate_ref[i] = v[act[i]] + dq_r[i]
     out = M_dia @ v_cmd + n_term
