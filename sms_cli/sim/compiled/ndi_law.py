@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.np.linalg import _LAPACK
 
 from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import error_quaternion
@@ -116,16 +117,54 @@ def _expm(A):
     return E
 
 
+# LAPACK's dgeev as numba's own eig calls it (by symbol name, so the callers stay cacheable): numba's eig of a real
+# matrix refuses complex eigenvalues, and its complex path (zgeev on A.astype(complex)) costs 2-3x more
+_rgeev = _LAPACK().numba_ez_rgeev(types.float64)
+
+
+@njit(**JIT)
+def real_eig(A):
+    """(λ, V, cond(V)) of the real n×n A, complex (the columns of V: unit-norm right eigenvectors, V diag(λ) V⁻¹ = A;
+    the 2-norm condition number of V), by LAPACK's real dgeev (conjugate pairs from its real and imaginary parts
+    x ± iy; numba's complex eig if it fails). V = W B with W real (columns x, y scaled by √2) and B block-diagonal
+    unitary ([[1, 1], [i, −i]]/√2 per pair), so cond(V) = cond(W): a real SVD."""
+    n = A.shape[0]
+    a = np.ascontiguousarray(A.T)  # column-major A (overwritten)
+    wr, wi, vr, vl = np.empty(n), np.empty(n), np.empty((n, n)), np.empty((1, 1))  # vr[j]: eigenvector column j
+    if _rgeev(ord("d"), ord("N"), ord("V"), n, a.ctypes, n, wr.ctypes, wi.ctypes, vl.ctypes, 1, vr.ctypes, n) != 0:
+        lam, V = np.linalg.eig(A.astype(np.complex128))
+        return lam, V, np.linalg.cond(V)
+    W = np.empty((n, n))
+    lam = np.empty(n, dtype=np.complex128)
+    V = np.empty((n, n), dtype=np.complex128)
+    j = 0
+    while j < n:
+        if wi[j] == 0.0 or j == n - 1:
+            lam[j] = complex(wr[j], wi[j])
+            for i in range(n):
+                V[i, j] = vr[j, i]
+                W[i, j] = vr[j, i]
+            j += 1
+        else:  # a conjugate pair: vr[j] ± i vr[j + 1]
+            lam[j], lam[j + 1] = complex(wr[j], wi[j]), complex(wr[j + 1], wi[j + 1])
+            for i in range(n):
+                V[i, j] = complex(vr[j, i], vr[j + 1, i])
+                V[i, j + 1] = complex(vr[j, i], -vr[j + 1, i])
+                W[i, j], W[i, j + 1] = math.sqrt(2.0) * vr[j, i], math.sqrt(2.0) * vr[j + 1, i]
+            j += 2
+    return lam, V, np.linalg.cond(W)
+
+
 @njit(**JIT)
 def observer_discretisation(A_L, T, Phi, Gamma):
     """Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds (n_e×n_e): by the eigen-decomposition of A_L when it is
     well conditioned and has no zero eigenvalue, else by the exponential of [[A_L, I], [0, 0]] T."""
     n = A_L.shape[0]
-    lam, V = np.linalg.eig(A_L.astype(np.complex128))
+    lam, V, cond = real_eig(A_L)
     min_abs = np.inf
     for i in range(n):
         min_abs = min(min_abs, abs(lam[i]))
-    if n and np.linalg.cond(V) < 1e8 and min_abs > 1e-12:
+    if n and cond < 1e8 and min_abs > 1e-12:
         Vi = np.linalg.inv(V)
         e = np.exp(lam * T)
         g = (e - 1.0) / lam
