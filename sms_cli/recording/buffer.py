@@ -38,9 +38,7 @@ class RecordBuffer:
         block kinematics (when compiled) and the message encoding."""
         from sms_cli.recording.encoding import warm_call
 
-        kin = [] if self.kinematics is None else [self.kinematics.warm_call()] + (
-            [self.kinematics.locked_warm_call()] if self.sm.wheels else [])
-        return [kin + [warm_call()]]
+        return [([self.kinematics.warm_call()] if self.kinematics is not None else []) + [warm_call()]]
 
     def __len__(self) -> int:
         return len(self._rows)
