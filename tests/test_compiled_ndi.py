@@ -87,6 +87,41 @@ def test_observer_discretisation_is_the_zoh_exponential(case):
     assert _close(Phi, E[:n, :n], 1e-12) and _close(Gamma, E[:n, n:], 1e-12)
 
 
+def _lightly_damped(n_modes=10, seed=5):
+    """A state matrix like the flagship observer's: 3 rigid rates coupled to lightly damped modes (0.1-3 Hz, ζ 0.005),
+    in random coordinates (complex pairs, a real triple)."""
+    rng = np.random.default_rng(seed)
+    n = 2 * n_modes + 3
+    D = np.zeros((n, n))
+    for k, w in enumerate(2 * np.pi * np.geomspace(0.1, 3.0, n_modes)):
+        D[2 * k:2 * k + 2, 2 * k:2 * k + 2] = [[0.0, 1.0], [-w * w, -2 * 0.005 * w]]
+    D[-3:, -3:] = -np.diag([0.5, 1.0, 2.0])
+    P = np.eye(n) + 0.3 * rng.normal(size=(n, n))
+    return P @ D @ np.linalg.inv(P)
+
+
+@pytest.mark.parametrize("case", ["random", "lightly_damped", "real_spectrum"])
+def test_real_eig_is_an_eigen_decomposition(case):
+    """ndi_law.real_eig: V diag(λ) V⁻¹ = A, unit-norm columns, the eigenvalues of numpy's eig, cond(V) of numpy's; and the
+    discretisation on the flagship-like spectrum against scipy's expm."""
+    rng = np.random.default_rng(8)
+    A = {"random": rng.normal(size=(9, 9)), "lightly_damped": _lightly_damped(),
+         "real_spectrum": (lambda Q: Q @ np.diag(np.arange(1.0, 8.0)) @ np.linalg.inv(Q))(np.eye(7) + 0.2 * rng.normal(size=(7, 7)))}[case]
+    lam, V, cond = K.real_eig(A)
+    assert _close(V @ np.diag(lam) @ np.linalg.inv(V), A, 1e-10)
+    assert abs(cond - np.linalg.cond(V)) <= 1e-9 * cond
+    assert _close(np.linalg.norm(V, axis=0), np.ones(A.shape[0]), 1e-13)
+    want = np.linalg.eigvals(A)
+    assert _close(np.sort_complex(lam), np.sort_complex(want), 1e-10)
+    n, T = A.shape[0], 0.1
+    Phi, Gamma = np.empty((n, n)), np.empty((n, n))
+    K.observer_discretisation(A, T, Phi, Gamma)
+    aug = np.zeros((2 * n, 2 * n))
+    aug[:n, :n], aug[:n, n:] = A, np.eye(n)
+    E = scipy.linalg.expm(aug * T)
+    assert _close(Phi, E[:n, :n], 1e-11) and _close(Gamma, E[:n, n:], 1e-11)
+
+
 def test_augmented_terms_equal_the_system_model(pulsar):
     """M and r = bias − internal forces of the loop (base-mounted modes) against SystemModel.mass_matrix,
     bias_forces and internal_forces (Pinocchio); the modal momenta and energy against momenta and energy."""

@@ -91,3 +91,17 @@ def test_observer_recovers_unmeasured_modes(tmp_path):
     sim_obj.run_python()
     assert errors[0] > 0.02
     assert errors[-1] < errors[0] / 20.0
+
+
+def test_least_norm_is_the_pseudo_inverse_solution():
+    """ndi_law.least_norm (the wheel feed-forward's least-norm solve) equals np.linalg.pinv(G) b: full row rank
+    3 × 4 (a pyramid) and 3 × 3, and through its fallback rank-deficient and 3 × 2 (two wheels) G."""
+    from sms_cli.sim.compiled.ndi_law import least_norm
+
+    rng = np.random.default_rng(4)
+    cases = [rng.normal(size=(3, 4)), rng.normal(size=(3, 3)), rng.normal(size=(3, 2))]
+    cases.append(rng.normal(size=(3, 2)) @ rng.normal(size=(2, 4)))  # rank 2
+    for G in cases:
+        b = rng.normal(size=3)
+        want = np.linalg.pinv(G) @ b
+        assert np.abs(least_norm(G, b) - want).max() <= 1e-12 * np.abs(want).max()

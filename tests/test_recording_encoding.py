@@ -119,3 +119,29 @@ def test_block_writes_the_same_messages_as_steps(tmp_path, rate):
     assert sorted(ma, key=key) == sorted(mb, key=key)  # exact: one encoder, binary doubles
     tf = [m for m in mb if m[0] == "/tf"]
     assert len(tf) == len(LINKS) * b.samples
+
+
+@pytest.mark.parametrize("rate", [None, 7, 10, 333])
+def test_select_picks_the_offers_take_picks(tmp_path, rate):
+    """``select`` on blocks (random sizes, one-offer and empty blocks; times on a grid of dt = 0.01 s as the loops
+    make them by repeated addition, then irregular steps and gaps longer than the period, then offers exactly at
+    due times) picks exactly the
+    offers that ``take`` at each offer reserves, and leaves the same next due time."""
+    rng = np.random.default_rng(11)
+    t_grid = np.cumsum(np.full(3000, 0.01))
+    t_irr = t_grid[-1] + np.cumsum(rng.choice([1e-4, 0.003, 0.05, 0.31], size=3000))
+    times = np.concatenate([t_grid, t_irr])
+    if rate:  # offers exactly at due times (``_next_due``'s: the first sample is at times[0]), each just after another
+        k = np.arange(int((times[-1] - times[0]) * rate) + 2, int((times[-1] - times[0]) * rate) + 200)
+        due = times[0] + (k - 1e-6) * (1.0 / rate)
+        times = np.concatenate([times, np.sort(np.concatenate([due, due - 1e-9]))])
+    a, b = make_recorder(tmp_path / "a.mcap", rate), make_recorder(tmp_path / "b.mcap", rate)
+    with a, b:
+        want = [i for i, t in enumerate(times) if a.take(float(t))]
+        got, lo = [], 0
+        while lo < times.size:
+            hi = min(times.size, lo + int(rng.choice([0, 1, 2, 37, 500])))
+            got += [lo + int(k) for k in b.select(times[lo:hi])]
+            lo = hi
+        assert got == want and a._next_t == b._next_t
+    assert len(want) > 100

@@ -96,7 +96,7 @@ class RecordBuffer:
         ``world`` (n, n_links + 1, 7): world poses of the links and end effector when there are
         no compiled kinematics; ``wrench`` (n, 6): the wrench applied to the base (``/base/wrench``);
         ``locked`` (n, 3): μ on ``/momentum/locked`` (models with wheels), None: from the rigid (q, v) samples
-        (the compiled loop's; ``sms_cli.dynamics.locked.locked_velocities``)."""
+        (the compiled loop's: ``SampleKinematics.locked``, else ``sms_cli.dynamics.locked.locked_velocities``)."""
         if self.kinematics is not None:
             world, rel, mom = self.kinematics(q, v)
             transforms, relative = rel[:, :-1], True
@@ -105,9 +105,12 @@ class RecordBuffer:
         else:
             transforms, relative = world[:, :-1], False
         if self.sm.wheels and locked is None:
-            from sms_cli.dynamics.locked import locked_velocities
+            if self.kinematics is not None:
+                locked = self.kinematics.locked(q, v)
+            else:
+                from sms_cli.dynamics.locked import locked_velocities
 
-            locked = locked_velocities(self.sm, q, v)
+                locked = locked_velocities(self.sm, q, v)
         scalars = numeric_topics(self.sm, q=q, v=v, wheel_torque=wheel_torque, ref_quat=ref_quat, err_vec=err_vec,
                                  momentum_p=p, momentum_k=k, ee=world[:, -1, :3], joint_torque=joint_torque,
                                  joint_ref=joint_ref, eta=eta, base_reaction=reaction, base_wrench=wrench,

@@ -491,15 +491,22 @@ class McapRecorder:
             if picked.size:
                 self._reserve(float(times[picked[-1]]))
             return picked
+        i = int(np.searchsorted(times, self._next_t, side="left"))  # first offer at or after the due time
+        if i >= times.size:
+            return np.zeros(0, dtype=np.intp)
+        if self._t0 is None:
+            self._t0 = float(times[i])
+        # the due time after a sample at each offer (``_next_due``'s arithmetic, elementwise), then the offer it
+        # picks: a chain from i, followed on Python ints (``take`` at each offer picks the same ones)
+        k = np.floor((times - self._t0) / self._period + _PERIOD_TOL) + 1
+        nxt = np.searchsorted(times, self._t0 + (k - _PERIOD_TOL) * self._period, side="left")
+        nxt = np.maximum(nxt, np.arange(1, times.size + 1)).tolist()  # at least the next offer
         picked = []
-        i = 0
-        while True:
-            i = max(i, int(np.searchsorted(times, self._next_t, side="left")))  # first offer at or after the due time
-            if i >= times.size:
-                break
+        n = times.size
+        while i < n:
             picked.append(i)
-            self._reserve(float(times[i]))
-            i += 1
+            i = nxt[i]
+        self._reserve(float(times[picked[-1]]))
         return np.array(picked, dtype=np.intp)
 
     def count_steps(self, n: int) -> None:

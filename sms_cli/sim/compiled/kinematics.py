@@ -46,6 +46,25 @@ class SampleKinematics:
                        np.ascontiguousarray(vs, dtype=float), world, rel, mom)
         return world, rel, mom
 
+    def locked(self, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
+        """μ (n, 3) rad/s, base frame, of stacks of rigid states (``momentum_control.sample_locked_velocities``)."""
+        from sms_cli.sim.compiled.momentum_control import sample_locked_velocities
+
+        T = self.tree
+        out = np.empty((qs.shape[0], 3))
+        sample_locked_velocities(*T[:6], T[9], T[10], T[11], np.ascontiguousarray(qs, dtype=float),
+                                 np.ascontiguousarray(vs, dtype=float), out)
+        return out
+
+    def locked_warm_call(self):
+        """``locked``'s kernel call on one throw-away sample (``sms_cli.sim.compiled.warmup``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        T = self.tree
+        return KernelCall("sms_cli.sim.compiled.momentum_control:sample_locked_velocities",
+                          (*T[:6], T[9], T[10], T[11], self.sm.q0.astype(float)[None].copy(), np.zeros((1, self.sm.nv)),
+                           np.empty((1, 3))), cost=3.0)
+
     def warm_call(self):
         """This object's ``sample_outputs`` call on one throw-away sample (``sms_cli.sim.compiled.warmup``)."""
         from sms_cli.sim.compiled.warmup import KernelCall

@@ -9,10 +9,13 @@ velocity μ per tick, W and its terms after every plant step). Same sequence as
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
+from sms_cli.sim.compiled.dynamics import joint_transforms, mass_matrix
 from sms_cli.sim.compiled.momentum_laws import T_W, momentum_law, momentum_lyapunov
 
 
@@ -52,6 +55,98 @@ def lyapunov_terms(code, q, v, ref, model, par, mem, out):
 
 
 @njit(**JIT)
+def _spd3_solve_columns(S, X, c0):
+    """X[:, c0:] ← S⁻¹ X[:, c0:] in place for a symmetric positive definite 3×3 S (Cholesky, read on its lower
+    triangle): the locked reduction's two solves, without allocating."""
+    l00 = math.sqrt(S[0, 0])
+    l10 = S[1, 0] / l00
+    l20 = S[2, 0] / l00
+    l11 = math.sqrt(S[1, 1] - l10 * l10)
+    l21 = (S[2, 1] - l20 * l10) / l11
+    l22 = math.sqrt(S[2, 2] - l20 * l20 - l21 * l21)
+    for j in range(c0, X.shape[1]):
+        y0 = X[0, j] / l00
+        y1 = (X[1, j] - l10 * y0) / l11
+        y2 = (X[2, j] - l20 * y0 - l21 * y1) / l22
+        x2 = y2 / l22
+        x1 = (y1 - l21 * x2) / l11
+        X[0, j] = (y0 - l10 * x1 - l20 * x2) / l00
+        X[1, j] = x1
+        X[2, j] = x2
+
+
+@njit(**JIT)
+def locked_reduction_into(M, A, I, Lam_s):
+    """The translation, then the rotation, reduced out of the base rows of a mass matrix M (n × n, base
+    coordinates first: rigid nv, or augmented with the modes; ``sms_cli.dynamics.locked._reduce``), into
+    A = M_vv⁻¹[M_vω, M_vs] (3, n − 3), I (3, 3) the symmetrised angular block of red = M_ω· − M_ωv A (kg m², base
+    frame, about the CoM) and Λ_s = I⁻¹ red_s (3, n − 6). No allocation (M_vv and I by Cholesky)."""
+    n = M.shape[0]
+    for i in range(3):
+        for j in range(n - 3):
+            A[i, j] = M[i, 3 + j]
+    _spd3_solve_columns(M, A, 0)  # M_vv: M's leading 3×3 block
+    for i in range(3):
+        for j in range(n - 3):
+            r = M[3 + i, 3 + j] - (M[3 + i, 0] * A[0, j] + M[3 + i, 1] * A[1, j] + M[3 + i, 2] * A[2, j])
+            if j < 3:
+                I[i, j] = r
+            else:
+                Lam_s[i, j - 3] = r
+    for i in range(3):
+        for j in range(i):
+            x = 0.5 * (I[i, j] + I[j, i])
+            I[i, j] = x
+            I[j, i] = x
+    _spd3_solve_columns(I, Lam_s, 0)
+
+
+@njit(**JIT)
+def locked_reduction(M):
+    """(A, I, Λ_s) of ``locked_reduction_into``, allocated."""
+    n = M.shape[0]
+    A, I, Lam_s = np.empty((3, n - 3)), np.empty((3, 3)), np.empty((3, n - 6))
+    locked_reduction_into(M, A, I, Lam_s)
+    return A, I, Lam_s
+
+
+@njit(**JIT)
+def _locked_velocity(M, x, A, I, Lam_s, mu):
+    """μ = ω + Λ_s ṡ (rad/s, base frame) into mu (3,) for the mass matrix M (nx × nx) and the velocity x (nx: v, then
+    the modal rates; ṡ = x[6:]), with the scratch A, I, Λ_s of ``locked_reduction_into``."""
+    locked_reduction_into(M, A, I, Lam_s)
+    for i in range(3):
+        acc = 0.0
+        for j in range(Lam_s.shape[1]):
+            acc += Lam_s[i, j] * x[6 + j]
+        mu[i] = x[3 + i] + acc
+
+
+@njit(**JIT)
+def locked_velocities_of(Ms, xs, out):
+    """μ (n, 3) into out for the stacks of mass matrices Ms (n, nx, nx) and velocities xs (n, nx) (``_locked_velocity``,
+    every shape coordinate: wheels, arm, modal rates; ``sms_cli.dynamics.locked.locked_velocity``)."""
+    nx = Ms.shape[1]
+    A, I, Lam_s = np.empty((3, nx - 3)), np.empty((3, 3)), np.empty((3, nx - 6))
+    for s in range(Ms.shape[0]):
+        _locked_velocity(Ms[s], xs[s], A, I, Lam_s, out[s])
+
+
+@njit(**JIT)
+def sample_locked_velocities(parent, kind, axis, place_R, place_p, inertia, armature, idx_q, idx_v, qs, vs, out):
+    """μ (rad/s, base frame) of rigid states (rows of qs, vs: no modes) into out (n, 3), each from the rigid mass
+    matrix at its q (``dynamics.mass_matrix``): ``sms_cli.dynamics.locked.locked_velocities`` of the compiled tree."""
+    n, nv = parent.shape[0], vs.shape[1]
+    R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
+    M = np.empty((nv, nv))
+    A, I, Lam_s = np.empty((3, nv - 3)), np.empty((3, 3)), np.empty((3, nv - 6))
+    for s in range(qs.shape[0]):
+        joint_transforms(kind, axis, place_R, place_p, idx_q, qs[s], R_rel, p_rel)
+        mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M)
+        _locked_velocity(M, vs[s], A, I, Lam_s, out[s])
+
+
+@njit(**JIT)
 def locked_model(M, wheels):
     """The model tuple of the rigid mass matrix M (nv × nv, ``mass_matrix``): ``sms_cli.dynamics.locked.locked_shape``
     and ``_MomentumLaw._model_args`` for a base with wheels only, for a mass that changes (propellant spent):
@@ -60,16 +155,7 @@ def locked_model(M, wheels):
     nv = M.shape[0]
     ns = nv - 6
     n = wheels.shape[0]
-    A = np.linalg.solve(np.ascontiguousarray(M[0:3, 0:3]), np.ascontiguousarray(M[0:3, 3:]))
-    red = np.empty((3, nv - 3))
-    for i in range(3):
-        for j in range(nv - 3):
-            red[i, j] = M[3 + i, 3 + j] - (M[3 + i, 0] * A[0, j] + M[3 + i, 1] * A[1, j] + M[3 + i, 2] * A[2, j])
-    I = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            I[i, j] = 0.5 * (red[i, j] + red[j, i])
-    Lam_s = np.linalg.solve(I, np.ascontiguousarray(red[:, 3:]))
+    A, I, Lam_s = locked_reduction(M)
     C_s = I @ Lam_s
     Mt = np.ascontiguousarray(M[6:, 6:]) - np.ascontiguousarray(M[0:3, 6:]).T @ np.ascontiguousarray(A[:, 3:]) \
         - np.ascontiguousarray(C_s.T) @ Lam_s

@@ -23,11 +23,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.np.linalg import _LAPACK
 
 from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import error_quaternion
-from sms_cli.sim.compiled.dynamics import bias_forces, mass_matrix, quat_to_matrix
+from sms_cli.sim.compiled.dynamics import bias_forces, cholesky, cholesky_solve, mass_matrix, quat_to_matrix
 
 # flags of the law's state (int64 array)
 STARTED, DISC_VALID, PINV_VALID, SATURATED, N_FLAGS = 0, 1, 2, 3, 4
@@ -116,16 +117,54 @@ def _expm(A):
     return E
 
 
+# LAPACK's dgeev as numba's own eig calls it (by symbol name, so the callers stay cacheable): numba's eig of a real
+# matrix refuses complex eigenvalues, and its complex path (zgeev on A.astype(complex)) costs 2-3x more
+_rgeev = _LAPACK().numba_ez_rgeev(types.float64)
+
+
+@njit(**JIT)
+def real_eig(A):
+    """(λ, V, cond(V)) of the real n×n A, complex (the columns of V: unit-norm right eigenvectors, V diag(λ) V⁻¹ = A;
+    the 2-norm condition number of V), by LAPACK's real dgeev (conjugate pairs from its real and imaginary parts
+    x ± iy; numba's complex eig if it fails). V = W B with W real (columns x, y scaled by √2) and B block-diagonal
+    unitary ([[1, 1], [i, −i]]/√2 per pair), so cond(V) = cond(W): a real SVD."""
+    n = A.shape[0]
+    a = np.ascontiguousarray(A.T)  # column-major A (overwritten)
+    wr, wi, vr, vl = np.empty(n), np.empty(n), np.empty((n, n)), np.empty((1, 1))  # vr[j]: eigenvector column j
+    if _rgeev(ord("d"), ord("N"), ord("V"), n, a.ctypes, n, wr.ctypes, wi.ctypes, vl.ctypes, 1, vr.ctypes, n) != 0:
+        lam, V = np.linalg.eig(A.astype(np.complex128))
+        return lam, V, np.linalg.cond(V)
+    W = np.empty((n, n))
+    lam = np.empty(n, dtype=np.complex128)
+    V = np.empty((n, n), dtype=np.complex128)
+    j = 0
+    while j < n:
+        if wi[j] == 0.0 or j == n - 1:
+            lam[j] = complex(wr[j], wi[j])
+            for i in range(n):
+                V[i, j] = vr[j, i]
+                W[i, j] = vr[j, i]
+            j += 1
+        else:  # a conjugate pair: vr[j] ± i vr[j + 1]
+            lam[j], lam[j + 1] = complex(wr[j], wi[j]), complex(wr[j + 1], wi[j + 1])
+            for i in range(n):
+                V[i, j] = complex(vr[j, i], vr[j + 1, i])
+                V[i, j + 1] = complex(vr[j, i], -vr[j + 1, i])
+                W[i, j], W[i, j + 1] = math.sqrt(2.0) * vr[j, i], math.sqrt(2.0) * vr[j + 1, i]
+            j += 2
+    return lam, V, np.linalg.cond(W)
+
+
 @njit(**JIT)
 def observer_discretisation(A_L, T, Phi, Gamma):
     """Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds (n_e×n_e): by the eigen-decomposition of A_L when it is
     well conditioned and has no zero eigenvalue, else by the exponential of [[A_L, I], [0, 0]] T."""
     n = A_L.shape[0]
-    lam, V = np.linalg.eig(A_L.astype(np.complex128))
+    lam, V, cond = real_eig(A_L)
     min_abs = np.inf
     for i in range(n):
         min_abs = min(min_abs, abs(lam[i]))
-    if n and np.linalg.cond(V) < 1e8 and min_abs > 1e-12:
+    if n and cond < 1e8 and min_abs > 1e-12:
         Vi = np.linalg.inv(V)
         e = np.exp(lam * T)
         g = (e - 1.0) / lam
@@ -173,6 +212,24 @@ def rotation_error(q_ref, q, out):
     scale = 2.0 if n < 1e-12 else 2.0 * math.atan2(n, e[3]) / max(n, 1e-300)
     for a in range(3):
         out[a] = scale * e[a]
+
+
+@njit(**JIT)
+def least_norm(G, b):
+    """pinv(G) b, G (3 × n) of full row rank (the wheels' effect on ω̇0): Gᵀ (G Gᵀ)⁻¹ b by the Cholesky factor of the
+    3×3 G Gᵀ, the SVD's least-norm solution without one; ``np.linalg.pinv`` when G Gᵀ is singular or ill-conditioned
+    (cond > 1e10, fewer than three wheels)."""
+    n = G.shape[1]
+    S = G @ G.T
+    L = np.zeros((3, 3))
+    if n >= 3:
+        cholesky(S, 3, L)
+        lo, hi = min(L[0, 0], L[1, 1], L[2, 2]), max(L[0, 0], L[1, 1], L[2, 2])
+        if math.isfinite(L[0, 0] + L[1, 1] + L[2, 2]) and lo > 1e-5 * hi:  # cond(S) = cond(L)² < ~1e10
+            y = np.empty(3)
+            cholesky_solve(L, b, 3, y)
+            return G.T @ y
+    return np.linalg.pinv(G) @ b
 
 
 @njit(**JIT)
@@ -226,9 +283,9 @@ def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_l
         if wheel_ff:  # Kraiem 2022 (3.66) derivative: ẍ_u = −M_uu⁻¹ (M_ua q̈_a + r_u), ω̇0 = 0, least norm
             G = sol[3:6, :n_r].copy()
             rest = sol[3:6, n_r:na] @ v_cmd[n_r:] + sol[3:6, na]
-            ff = -(np.linalg.pinv(G) @ rest)
+            ff = least_norm(G, rest)
             for i in range(n_r):
-                v_cmd[i] += ff[i]
+                v_cmd[i] -= ff[i]
         for i in range(n_r):
             wheel_rate_ref[i] = v[act[i]] + dq_r[i]
     out = M_dia @ v_cmd + n_term

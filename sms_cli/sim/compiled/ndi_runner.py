@@ -54,7 +54,7 @@ class NdiCompiledSimulation(CompiledSimulation):
     def _record_modal(self, times, qs, vs, etas, etadots, tau_w, tau_m, joint_ref, q_ref) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks: modal coordinates,
         momenta with the modal terms and the locked velocity μ at (q, v, η̇) (``Simulation._record``)."""
-        from sms_cli.dynamics.locked import locked_velocity
+        from sms_cli.sim.compiled.momentum_control import locked_velocities_of
 
         idx = self.rec.select(times)
         if idx.size == 0:
@@ -63,7 +63,10 @@ class NdiCompiledSimulation(CompiledSimulation):
         n = idx.size
         refs = np.broadcast_to(q_ref, (n, 4))
         mom, Ms = self._modal_momenta(qs, vs, etas, etadots, mass_matrices=bool(self.sm.wheels))
-        locked = np.array([locked_velocity(self.sm, qs[i], vs[i], etadots[i], M=Ms[i]) for i in range(n)]) if self.sm.wheels else None
+        locked = None
+        if self.sm.wheels:  # μ from the augmented mass matrices (momentum_control.locked_velocities_of)
+            locked = np.empty((n, 3))
+            locked_velocities_of(Ms, np.ascontiguousarray(np.concatenate([vs, etadots], axis=1)), locked)
         self.buffer.write(times[idx], qs, vs, etas, tau_w[idx], tau_m[idx], refs, joint_ref[idx], attitude_error(refs, qs[:, 3:7]),
                           p=mom[:, 0:3], k=mom[:, 3:6], wrench=np.zeros((n, 6)) if self.record_wrench else None, locked=locked)
 
@@ -270,4 +273,7 @@ class NdiCompiledSimulation(CompiledSimulation):
             eta[None].copy(), ed[None].copy(), np.empty((1, 10)), np.empty((0, sm.nx, sm.nx))), cost=3.0)]
         if self.rec is not None:
             momenta += [self.kinematics.warm_call(), warm_call()]
+            if sm.wheels:
+                momenta.append(KernelCall(f"{mod}.momentum_control:locked_velocities_of", (
+                    np.eye(sm.nx)[None].copy(), np.zeros((1, sm.nx)), np.empty((1, 3))), cost=1.0))
         return [loop, momenta]

@@ -123,6 +123,17 @@ def _event(ev, ev_n, t, kind, k, side, limit, rate, rate_after, pen, impulse, on
 
 
 @njit(**JIT)
+def _beyond(q, sj_q, sj_lower, sj_upper, k):
+    """UPPER or LOWER when stop joint k is at or beyond that limit at q, else 0."""
+    x = q[sj_q[k]]
+    if x >= sj_upper[k]:
+        return UPPER
+    if x <= sj_lower[k]:
+        return LOWER
+    return 0
+
+
+@njit(**JIT)
 def _penetration(q, sj_q, sj_lower, sj_upper, k):
     x = q[sj_q[k]]
     return max(0.0, max(x - sj_upper[k], sj_lower[k] - x))
@@ -180,10 +191,15 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v = tree_a
     nv = v.shape[0]
     ns = sj_v.shape[0]
-    none_f, none_i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    # empty arrays as views (no allocation in the common step: no joint on its stop, none arriving)
+    none_f, none_i = sj_lower[:0], sj_v[:0]
     modal_Bt, modal_BtB, neg_omega2, neg_2zo = modal
     # contacts: the locked joints whose contact force pushes at (q, v)
-    locked = _nonzero(side)
+    on_stop = False
+    for j in range(ns):
+        if side[j] != 0:
+            on_stop = True
+    locked = _nonzero(side) if on_stop else none_i
     n_locked = locked.shape[0]
     if n_locked:
         vd = np.empty(nv)
@@ -217,7 +233,7 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
                 keep += 1
         n_locked = keep
     nb = 6 if held else 0
-    lock_v = np.empty(nb + n_locked, dtype=np.int64)
+    lock_v = np.empty(nb + n_locked, dtype=np.int64) if nb + n_locked else none_i
     for i in range(nb):
         lock_v[i] = i
     for i in range(n_locked):
@@ -229,19 +245,17 @@ def stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, side, rebound
     for i in range(n_locked):
         on_time[locked[i]] += dt
     # arrivals (JointStops._arrivals)
-    beyond = np.zeros(ns, dtype=np.int64)
-    sd = np.zeros(ns, dtype=np.int64)
     any_arriving = False
     for j in range(ns):
-        x = q_out[sj_q[j]]
-        if x >= sj_upper[j]:
-            beyond[j] = UPPER
-        elif x <= sj_lower[j]:
-            beyond[j] = LOWER
-        sd[j] = side[j] if side[j] != 0 else beyond[j]
-        if side[j] == 0 and beyond[j] != 0 and beyond[j] * v_out[sj_v[j]] > 0.0:
+        bj = _beyond(q_out, sj_q, sj_lower, sj_upper, j)
+        if side[j] == 0 and bj != 0 and bj * v_out[sj_v[j]] > 0.0:
             any_arriving = True
     if any_arriving:
+        beyond = np.zeros(ns, dtype=np.int64)
+        sd = np.zeros(ns, dtype=np.int64)
+        for j in range(ns):
+            beyond[j] = _beyond(q_out, sj_q, sj_lower, sj_upper, j)
+            sd[j] = side[j] if side[j] != 0 else beyond[j]
         S = _nonzero(sd)
         m = S.shape[0]
         o = np.empty(m)
