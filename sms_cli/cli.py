@@ -689,8 +689,7 @@ def warmup_cmd(
     Example:
 
     \b
-        sms warmup missions/pulsar_simple.yaml
-        sms warmup missions/*.yaml
+        sms warmup missions/pulsar_simple.yaml missions/caldera_s1_slew.yaml
     """
 
     def body() -> int:

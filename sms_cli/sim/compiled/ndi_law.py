@@ -24,7 +24,6 @@ import math
 
 import numpy as np
 from numba import njit, types
-from numba.np.linalg import _LAPACK
 
 from sms_cli.sim.compiled import JIT
 from sms_cli.sim.compiled.control import error_quaternion
@@ -118,12 +117,25 @@ def _expm(A):
 
 
 # LAPACK's dgeev as numba's own eig calls it (by symbol name, so the callers stay cacheable): numba's eig of a real
-# matrix refuses complex eigenvalues, and its complex path (zgeev on A.astype(complex)) costs 2-3x more
-_rgeev = _LAPACK().numba_ez_rgeev(types.float64)
+# matrix refuses complex eigenvalues, and its complex path (zgeev on A.astype(complex)) costs 2-3x more. The binding
+# is numba's private API: a numba without it gets the complex path (``complex_eig``), same results.
+try:
+    from numba.np.linalg import _LAPACK
+
+    _rgeev = _LAPACK().numba_ez_rgeev(types.float64)
+except (ImportError, AttributeError):  # pragma: no cover - numba 0.68 has it
+    _rgeev = None
 
 
 @njit(**JIT)
-def real_eig(A):
+def complex_eig(A):
+    """(λ, V, cond(V)) of the real n×n A by numba's complex eig (zgeev on A as complex); ``real_eig``'s fallback."""
+    lam, V = np.linalg.eig(A.astype(np.complex128))
+    return lam, V, np.linalg.cond(V)
+
+
+@njit(**JIT)
+def _real_eig(A):
     """(λ, V, cond(V)) of the real n×n A, complex (the columns of V: unit-norm right eigenvectors, V diag(λ) V⁻¹ = A;
     the 2-norm condition number of V), by LAPACK's real dgeev (conjugate pairs from its real and imaginary parts
     x ± iy; numba's complex eig if it fails). V = W B with W real (columns x, y scaled by √2) and B block-diagonal
@@ -132,8 +144,7 @@ def real_eig(A):
     a = np.ascontiguousarray(A.T)  # column-major A (overwritten)
     wr, wi, vr, vl = np.empty(n), np.empty(n), np.empty((n, n)), np.empty((1, 1))  # vr[j]: eigenvector column j
     if _rgeev(ord("d"), ord("N"), ord("V"), n, a.ctypes, n, wr.ctypes, wi.ctypes, vl.ctypes, 1, vr.ctypes, n) != 0:
-        lam, V = np.linalg.eig(A.astype(np.complex128))
-        return lam, V, np.linalg.cond(V)
+        return complex_eig(A)
     W = np.empty((n, n))
     lam = np.empty(n, dtype=np.complex128)
     V = np.empty((n, n), dtype=np.complex128)
@@ -153,6 +164,9 @@ def real_eig(A):
                 W[i, j], W[i, j + 1] = math.sqrt(2.0) * vr[j, i], math.sqrt(2.0) * vr[j + 1, i]
             j += 2
     return lam, V, np.linalg.cond(W)
+
+
+real_eig = _real_eig if _rgeev is not None else complex_eig
 
 
 @njit(**JIT)
