@@ -32,6 +32,9 @@ class RecordBuffer:
             self.kinematics = SampleKinematics(sm)
         self.link_fids = [sm.link_frames[n] for n in sm.link_parents]
         self._rows: list[tuple] = []
+        from sms_cli.dynamics.locked import shape_invariant
+
+        self._shape_invariant = shape_invariant(sm)
 
     def warm_calls(self) -> list:
         """The recording's kernel calls (one group), for ``sms_cli.sim.compiled.warmup.warm``: the
@@ -105,9 +108,9 @@ class RecordBuffer:
         else:
             transforms, relative = world[:, :-1], False
         if self.sm.wheels and locked is None:
-            if self.kinematics is not None:
+            if self.kinematics is not None and not self._shape_invariant:
                 locked = self.kinematics.locked(q, v)
-            else:
+            else:  # one mass matrix for the whole block when it does not depend on q (wheels only on the base)
                 from sms_cli.dynamics.locked import locked_velocities
 
                 locked = locked_velocities(self.sm, q, v)

@@ -29,6 +29,7 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
     ``recording``: the ``SampleKinematics`` a recording samples with, False for one recorded
     without compiled kinematics, None for no recording; ``rr``: the Python loop's resolved rate; ``disturbed``:
     the Python loop adds disturbance wrenches."""
+    from sms_cli.dynamics.locked import shape_invariant
     from sms_cli.recording.encoding import warm_call
 
     groups: list[list[KernelCall]] = []
@@ -46,8 +47,8 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
         groups.append(python_arm_calls(sm, arm_law) + python_reference_calls(sm, rr, disturbed))
     if recording is not None:
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
-        if loop_tree is not None and recording and sm.wheels:  # μ of the compiled loop's samples (RecordBuffer.write)
-            groups[-1].append(recording.locked_warm_call())
+        if loop_tree is not None and recording and sm.wheels and not shape_invariant(sm):
+            groups[-1].append(recording.locked_warm_call())  # μ of the compiled loop's samples (RecordBuffer.write)
         if loop is not None and recording and any(p.base_mode == "fixed" for p in loop.spec.phases):
             groups[-1].append(held_reactions_call(sm, loop_tree))  # /base/reaction of the compiled loop's samples
         if loop is not None and recording and loop.spec.disturbances:  # their /base/wrench
