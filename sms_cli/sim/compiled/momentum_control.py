@@ -9,13 +9,11 @@ velocity μ per tick, W and its terms after every plant step). Same sequence as
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
-from sms_cli.sim.compiled.dynamics import joint_transforms, mass_matrix
+from sms_cli.sim.compiled.dynamics import cholesky, cholesky_solve, joint_transforms, mass_matrix
 from sms_cli.sim.compiled.momentum_laws import T_W, momentum_law, momentum_lyapunov
 
 
@@ -55,37 +53,30 @@ def lyapunov_terms(code, q, v, ref, model, par, mem, out):
 
 
 @njit(**JIT)
-def _spd3_solve_columns(S, X, c0):
-    """X[:, c0:] ← S⁻¹ X[:, c0:] in place for a symmetric positive definite 3×3 S (Cholesky, read on its lower
-    triangle): the locked reduction's two solves, without allocating."""
-    l00 = math.sqrt(S[0, 0])
-    l10 = S[1, 0] / l00
-    l20 = S[2, 0] / l00
-    l11 = math.sqrt(S[1, 1] - l10 * l10)
-    l21 = (S[2, 1] - l20 * l10) / l11
-    l22 = math.sqrt(S[2, 2] - l20 * l20 - l21 * l21)
-    for j in range(c0, X.shape[1]):
-        y0 = X[0, j] / l00
-        y1 = (X[1, j] - l10 * y0) / l11
-        y2 = (X[2, j] - l20 * y0 - l21 * y1) / l22
-        x2 = y2 / l22
-        x1 = (y1 - l21 * x2) / l11
-        X[0, j] = (y0 - l10 * x1 - l20 * x2) / l00
-        X[1, j] = x1
-        X[2, j] = x2
+def _solve3_columns(S, X, L, col):
+    """X ← S⁻¹ X in place for a symmetric positive definite 3×3 S (``dynamics.cholesky``, read on its lower
+    triangle), column by column through ``col`` (3,); L is 3×3 scratch: the locked reduction's two solves."""
+    cholesky(S, 3, L)
+    for j in range(X.shape[1]):
+        for a in range(3):
+            col[a] = X[a, j]
+        cholesky_solve(L, col, 3, col)
+        for a in range(3):
+            X[a, j] = col[a]
 
 
 @njit(**JIT)
-def locked_reduction_into(M, A, I, Lam_s):
+def locked_reduction_into(M, A, I, Lam_s, L, col):
     """The translation, then the rotation, reduced out of the base rows of a mass matrix M (n × n, base
     coordinates first: rigid nv, or augmented with the modes; ``sms_cli.dynamics.locked._reduce``), into
     A = M_vv⁻¹[M_vω, M_vs] (3, n − 3), I (3, 3) the symmetrised angular block of red = M_ω· − M_ωv A (kg m², base
-    frame, about the CoM) and Λ_s = I⁻¹ red_s (3, n − 6). No allocation (M_vv and I by Cholesky)."""
+    frame, about the CoM) and Λ_s = I⁻¹ red_s (3, n − 6). No allocation (M_vv and I by Cholesky; L (3, 3) and col
+    (3,) scratch)."""
     n = M.shape[0]
     for i in range(3):
         for j in range(n - 3):
             A[i, j] = M[i, 3 + j]
-    _spd3_solve_columns(M, A, 0)  # M_vv: M's leading 3×3 block
+    _solve3_columns(M, A, L, col)  # M_vv: M's leading 3×3 block
     for i in range(3):
         for j in range(n - 3):
             r = M[3 + i, 3 + j] - (M[3 + i, 0] * A[0, j] + M[3 + i, 1] * A[1, j] + M[3 + i, 2] * A[2, j])
@@ -98,7 +89,7 @@ def locked_reduction_into(M, A, I, Lam_s):
             x = 0.5 * (I[i, j] + I[j, i])
             I[i, j] = x
             I[j, i] = x
-    _spd3_solve_columns(I, Lam_s, 0)
+    _solve3_columns(I, Lam_s, L, col)
 
 
 @njit(**JIT)
@@ -106,15 +97,15 @@ def locked_reduction(M):
     """(A, I, Λ_s) of ``locked_reduction_into``, allocated."""
     n = M.shape[0]
     A, I, Lam_s = np.empty((3, n - 3)), np.empty((3, 3)), np.empty((3, n - 6))
-    locked_reduction_into(M, A, I, Lam_s)
+    locked_reduction_into(M, A, I, Lam_s, np.empty((3, 3)), np.empty(3))
     return A, I, Lam_s
 
 
 @njit(**JIT)
-def _locked_velocity(M, x, A, I, Lam_s, mu):
+def _locked_velocity(M, x, A, I, Lam_s, L, col, mu):
     """μ = ω + Λ_s ṡ (rad/s, base frame) into mu (3,) for the mass matrix M (nx × nx) and the velocity x (nx: v, then
-    the modal rates; ṡ = x[6:]), with the scratch A, I, Λ_s of ``locked_reduction_into``."""
-    locked_reduction_into(M, A, I, Lam_s)
+    the modal rates; ṡ = x[6:]), with the scratch A, I, Λ_s, L, col of ``locked_reduction_into``."""
+    locked_reduction_into(M, A, I, Lam_s, L, col)
     for i in range(3):
         acc = 0.0
         for j in range(Lam_s.shape[1]):
@@ -127,9 +118,9 @@ def locked_velocities_of(Ms, xs, out):
     """μ (n, 3) into out for the stacks of mass matrices Ms (n, nx, nx) and velocities xs (n, nx) (``_locked_velocity``,
     every shape coordinate: wheels, arm, modal rates; ``sms_cli.dynamics.locked.locked_velocity``)."""
     nx = Ms.shape[1]
-    A, I, Lam_s = np.empty((3, nx - 3)), np.empty((3, 3)), np.empty((3, nx - 6))
+    A, I, Lam_s, L, col = np.empty((3, nx - 3)), np.empty((3, 3)), np.empty((3, nx - 6)), np.empty((3, 3)), np.empty(3)
     for s in range(Ms.shape[0]):
-        _locked_velocity(Ms[s], xs[s], A, I, Lam_s, out[s])
+        _locked_velocity(Ms[s], xs[s], A, I, Lam_s, L, col, out[s])
 
 
 @njit(**JIT)
@@ -139,11 +130,11 @@ def sample_locked_velocities(parent, kind, axis, place_R, place_p, inertia, arma
     n, nv = parent.shape[0], vs.shape[1]
     R_rel, p_rel = np.empty((n, 3, 3)), np.empty((n, 3))
     M = np.empty((nv, nv))
-    A, I, Lam_s = np.empty((3, nv - 3)), np.empty((3, 3)), np.empty((3, nv - 6))
+    A, I, Lam_s, L, col = np.empty((3, nv - 3)), np.empty((3, 3)), np.empty((3, nv - 6)), np.empty((3, 3)), np.empty(3)
     for s in range(qs.shape[0]):
         joint_transforms(kind, axis, place_R, place_p, idx_q, qs[s], R_rel, p_rel)
         mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M)
-        _locked_velocity(M, vs[s], A, I, Lam_s, out[s])
+        _locked_velocity(M, vs[s], A, I, Lam_s, L, col, out[s])
 
 
 @njit(**JIT)
