@@ -167,7 +167,9 @@ def emit(data, as_json: bool, formatter: Callable[[dict], str]) -> None:
 
 def default_out(mission_path: Path, out: Path | None) -> Path:
     """Results folder of a mission: ``--out`` or ``results/<mission file stem>``."""
-    return out if out is not None else Path("results") / mission_path.stem
+    from sms_cli.results import default_results_dir
+
+    return out if out is not None else default_results_dir(mission_path)
 
 
 @command("compile")

@@ -28,6 +28,11 @@ from sms_cli.errors import InputError, Location, Problem
 
 RESULTS_FILE = "results.json"
 LOCK_FILE = ".sms.lock"
+
+
+def default_results_dir(mission_path: Path | str) -> Path:
+    """A mission's results folder when none is given: ``results/<mission file stem>`` in the current directory."""
+    return Path("results") / Path(mission_path).stem
 _OLD_PART_AGE_S = 3600  # a temporary without a PID in its name (older sms) is stale after an hour
 _held: dict[str, int] = {}  # folders this process holds the lock of (real path → lock fd)
 

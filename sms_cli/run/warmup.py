@@ -48,57 +48,56 @@ def _signature(call) -> tuple:
 def plan_missions(paths: list[Path]) -> WarmPlan:
     """The kernel calls of the missions at ``paths`` (input errors raise InputError, as in ``sms compile``)."""
     from sms_cli.mission.load import load_mission
+    from sms_cli.model import compile_system
 
     plan = WarmPlan()
     for path in paths:
         loaded = load_mission(path)
-        _plan_analysis(loaded, plan)
-        _plan_simulation(loaded, plan)
+        if loaded.mission.robot is None:  # (a budget-only mission)
+            continue
+        if loaded.mission.analysis is None and loaded.mission.simulation is None:
+            continue
+        sm = compile_system(loaded)  # once, for both stages
+        _plan_analysis(loaded, sm, plan)
+        _plan_simulation(loaded, sm, plan)
     return plan
 
 
-def _plan_analysis(loaded, plan: WarmPlan) -> None:
-    """The study's kernels on the nominal system (the variants share its argument types)."""
+def _plan_analysis(loaded, sm, plan: WarmPlan) -> None:
+    """The study's kernels on the nominal system ``sm`` (the variants share its argument types)."""
     from sms_cli.analysis.stage import analysis_kernel_calls
     from sms_cli.analysis.workspace import build_variants, make_sampler
-    from sms_cli.model import compile_system
 
-    if loaded.mission.analysis is None or loaded.mission.robot is None:  # `sms run` analyzes what configures it
-        return
-    sm = compile_system(loaded)
-    if not sm.arm:
+    if loaded.mission.analysis is None or not sm.arm:  # `sms run` analyzes what configures it
         return
     spec = loaded.mission.analysis
     _, sampled = make_sampler(sm, spec, loaded)
-    plan.add(analysis_kernel_calls(build_variants(sm, spec, sampled, loaded)[:1]))
+    plan.add(analysis_kernel_calls(build_variants(sm, spec, sampled, loaded)[0].kernel))
 
 
-def _plan_simulation(loaded, plan: WarmPlan) -> None:
-    """The calls of the loop ``sms simulate`` would choose, with a recorder like its own (never opened)."""
+def _plan_simulation(loaded, sm, plan: WarmPlan) -> None:
+    """The calls of the loop ``sms simulate`` would choose for the model ``sm``, with a recorder like its own
+    (never opened)."""
     from sms_cli.errors import InputError
     from sms_cli.recording.recorder import McapRecorder
+    from sms_cli.results import default_results_dir
     from sms_cli.sim.engine import Simulation
     from sms_cli.sim.stage import prepared_simulation
 
     mission = loaded.mission
-    if mission.simulation is None or mission.robot is None:  # (two spacecraft: formation:, the Python loop)
+    if mission.simulation is None:  # (two spacecraft: formation:, the Python loop)
         return
-    sm, spec, _ = prepared_simulation(loaded)
+    sm, spec, _ = prepared_simulation(loaded, sm)
     with tempfile.TemporaryDirectory(prefix="sms_warmup_") as tmp:
         rec = McapRecorder(Path(tmp) / "warmup.mcap", mission_text="", mission_name=mission.name, model_summary={},
                            urdf_text=None, versions={}, record_rate_hz=spec.record_rate)
         try:
-            sim = Simulation(sm, spec, rec, False, results_dir=_results_dir(loaded), mission_dir=loaded.path.parent,
-                             any_gains=True)
+            sim = Simulation(sm, spec, rec, False, results_dir=default_results_dir(loaded.path),
+                             mission_dir=loaded.path.parent, any_gains=True)
         except InputError as exc:  # attitude: from_gains without gains.yaml: only `sms synthesize` knows the law
             plan.notes.append(f"{mission.name}: simulation kernels left to its first run ({exc.problems[0].message})")
             return
         plan.add(sim.kernel_groups())
-
-
-def _results_dir(loaded) -> Path:
-    """Where ``sms run`` keeps this mission's results by default (gains.yaml, when synthesized)."""
-    return Path("results") / loaded.path.stem
 
 
 def warm_missions(paths: list[Path], lanes: int | None = None) -> dict:

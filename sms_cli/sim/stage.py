@@ -56,9 +56,10 @@ class SimulationDiverged(NumericalError):
         self.run = run
 
 
-def prepared_simulation(loaded: LoadedMission):
+def prepared_simulation(loaded: LoadedMission, sm=None):
     """(compiled model, simulation spec with every ``duration: auto`` resolved, move plans) of a mission
-    with a valid ``simulation:`` section (InputError otherwise)."""
+    with a valid ``simulation:`` section (InputError otherwise); ``sm``: the mission's model when already
+    compiled."""
     from sms_cli.model import compile_system
     from sms_cli.sim.validate import validate_simulation
 
@@ -70,7 +71,7 @@ def prepared_simulation(loaded: LoadedMission):
     if loaded.mission.simulation is None:
         raise InputError(problems=[Problem("this mission has no 'simulation:' section", loaded.source.locate(()),
                                            hint="add simulation: {dt, control_rate, attitude, arm, phases: [...]}")])
-    sm = compile_system(loaded)
+    sm = compile_system(loaded) if sm is None else sm
     validate_simulation(sm, loaded)  # a bad name is exit 2 before a recording exists
     spec, plans = planned_simulation(sm, loaded)
     return sm, spec, plans

@@ -107,8 +107,9 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     from sms_cli.sim.compiled.dynamics import workspace
     from sms_cli.sim.compiled.loop import RR_N, X_N
     from sms_cli.sim.compiled.profiles import PROF_N
-    from sms_cli.sim.compiled.sensors import SENS_JOINT_BIAS
     from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
+    from sms_cli.sim.schema import SensorsSpec
+    from sms_cli.sim.sensors import Sensors
 
     plant_tree = tree[:7] + tree[9:]  # without mass and com
     nw = len(sm.idx.wheels)
@@ -121,9 +122,9 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     mod = "sms_cli.sim.compiled"
     n_arm = len(sm.arm)
     mom_args, thr_args = NO_MOMENTUM_LAW, NO_THRUSTERS  # the run's own types (None: those blocks pruned)
-    sens_args = (False, np.zeros(SENS_JOINT_BIAS + n_arm), np.zeros((0, 0)))  # noiseless sensors
+    sensors = loop.sensors if loop is not None else Sensors(sm, SensorsSpec())  # noiseless without a loop
+    sens_args = (sensors.noisy, sensors.par.copy(), np.zeros((0, sensors.width)))
     if loop is not None:
-        sens_args = (loop.sensors.noisy, loop.sensors.par.copy(), np.zeros((0, loop.sensors.width)))
         arm_args, stop_args = loop._arm_args(), loop._stop_args()
         mom_args = loop._momentum_args()
         mom_args = (mom_args[0], mom_args[1], mom_args[2].copy(), mom_args[3].copy(), mom_args[4].copy())
@@ -143,8 +144,7 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
                                                        v.copy(), np.zeros(ns), np.zeros(ns), ev, np.zeros(1, dtype=np.int64),
                                                        ws, rigid[:4], none_f, none_f, none_f, none_f, False), cost=6.0)]
     return stops + [
-        KernelCall(f"{mod}.sensors:measure_state", (sens_args[1], np.zeros(sens_args[2].shape[1]), arm_args[0], arm_args[1], q,
-                                                     v, q.copy(), v.copy()), cost=0.4),
+        sensors.warm_call(),
         KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),

@@ -66,7 +66,7 @@ class NdiCompiledSimulation(CompiledSimulation):
         locked = None
         if self.sm.wheels:  # μ from the augmented mass matrices (momentum_control.locked_velocities_of)
             locked = np.empty((n, 3))
-            locked_velocities_of(Ms, np.ascontiguousarray(np.concatenate([vs, etadots], axis=1)), locked)
+            locked_velocities_of(Ms, np.concatenate([vs, etadots], axis=1), locked)
         self.buffer.write(times[idx], qs, vs, etas, tau_w[idx], tau_m[idx], refs, joint_ref[idx], attitude_error(refs, qs[:, 3:7]),
                           p=mom[:, 0:3], k=mom[:, 3:6], wrench=np.zeros((n, 6)) if self.record_wrench else None, locked=locked)
 
