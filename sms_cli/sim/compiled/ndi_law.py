@@ -20,6 +20,7 @@ Units SI (rad, m, sqrt(kg) m for η).
 
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
@@ -116,9 +117,10 @@ def _expm(A):
     return E
 
 
-# LAPACK's dgeev as numba's own eig calls it (by symbol name, so the callers stay cacheable): numba's eig of a real
-# matrix refuses complex eigenvalues, and its complex path (zgeev on A.astype(complex)) costs 2-3x more. The binding
-# is numba's private API: a numba without it gets the complex path (``complex_eig``), same results.
+# LAPACK's dgeev as numba's own eig calls it (by symbol name, so the callers stay cacheable). numba's eig of a real
+# matrix refuses complex eigenvalues and its complex path (zgeev on A as complex, then complex inverses) costs 2-3x
+# more to run and about 20 s more to compile. The binding is numba's private API: a numba without it discretises by
+# the Padé exponential (``_discretise_by_expm``), same results to round-off.
 try:
     from numba.np.linalg import _LAPACK
 
@@ -128,63 +130,46 @@ except (ImportError, AttributeError):  # pragma: no cover - numba 0.68 has it
 
 
 @njit(**JIT)
-def complex_eig(A):
-    """(λ, V, cond(V)) of the real n×n A by numba's complex eig (zgeev on A as complex); ``real_eig``'s fallback."""
-    lam, V = np.linalg.eig(A.astype(np.complex128))
-    return lam, V, np.linalg.cond(V)
-
-
-@njit(**JIT)
-def _real_eig(A):
-    """(λ, V, cond(V)) of the real n×n A, complex (the columns of V: unit-norm right eigenvectors, V diag(λ) V⁻¹ = A;
-    the 2-norm condition number of V), by LAPACK's real dgeev (conjugate pairs from its real and imaginary parts
-    x ± iy; numba's complex eig if it fails). V = W B with W real (columns x, y scaled by √2) and B block-diagonal
-    unitary ([[1, 1], [i, −i]]/√2 per pair), so cond(V) = cond(W): a real SVD."""
+def _lapack_real_blocks(A):
+    """(ok, W, re, im, cond(W)): the real eigen-decomposition A W = W Λ of the real n×n A by LAPACK's dgeev, Λ
+    block-diagonal with re[j] on the diagonal and, for a conjugate pair re ± i·im in columns (j, j + 1) (im[j] > 0,
+    im[j + 1] = −im[j]), Λ[j, j + 1] = im[j], Λ[j + 1, j] = −im[j]: the pair's eigenvectors are x ± iy with x, y
+    the columns j, j + 1 of W. The columns are √2·(x, y) for a pair and the unit eigenvector for a real eigenvalue, so
+    cond(W) (2-norm) equals the condition number of the unit-norm complex eigenvector matrix. ok is False when
+    dgeev fails."""
     n = A.shape[0]
     a = np.ascontiguousarray(A.T)  # column-major A (overwritten)
     wr, wi, vr, vl = np.empty(n), np.empty(n), np.empty((n, n)), np.empty((1, 1))  # vr[j]: eigenvector column j
-    if _rgeev(ord("d"), ord("N"), ord("V"), n, a.ctypes, n, wr.ctypes, wi.ctypes, vl.ctypes, 1, vr.ctypes, n) != 0:
-        return complex_eig(A)
     W = np.empty((n, n))
-    lam = np.empty(n, dtype=np.complex128)
-    V = np.empty((n, n), dtype=np.complex128)
+    if _rgeev(ord("d"), ord("N"), ord("V"), n, a.ctypes, n, wr.ctypes, wi.ctypes, vl.ctypes, 1, vr.ctypes, n) != 0:
+        return False, W, wr, wi, np.inf
     j = 0
     while j < n:
         if wi[j] == 0.0 or j == n - 1:
-            lam[j] = complex(wr[j], wi[j])
             for i in range(n):
-                V[i, j] = vr[j, i]
                 W[i, j] = vr[j, i]
             j += 1
         else:  # a conjugate pair: vr[j] ± i vr[j + 1]
-            lam[j], lam[j + 1] = complex(wr[j], wi[j]), complex(wr[j + 1], wi[j + 1])
             for i in range(n):
-                V[i, j] = complex(vr[j, i], vr[j + 1, i])
-                V[i, j + 1] = complex(vr[j, i], -vr[j + 1, i])
                 W[i, j], W[i, j + 1] = math.sqrt(2.0) * vr[j, i], math.sqrt(2.0) * vr[j + 1, i]
             j += 2
-    return lam, V, np.linalg.cond(W)
-
-
-real_eig = _real_eig if _rgeev is not None else complex_eig
+    return True, W, wr, wi, np.linalg.cond(W)
 
 
 @njit(**JIT)
-def observer_discretisation(A_L, T, Phi, Gamma):
-    """Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds (n_e×n_e): by the eigen-decomposition of A_L when it is
-    well conditioned and has no zero eigenvalue, else by the exponential of [[A_L, I], [0, 0]] T."""
+def _no_real_blocks(A):
+    """``_lapack_real_blocks`` on a numba without the dgeev binding: never ok (the Padé path runs instead)."""
+    n = A.shape[0]
+    return False, np.empty((n, n)), np.empty(n), np.empty(n), np.inf
+
+
+real_blocks = _lapack_real_blocks if _rgeev is not None else _no_real_blocks
+
+
+@njit(**JIT)
+def _discretise_by_expm(A_L, T, Phi, Gamma):
+    """Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds as the blocks of the exponential of [[A_L, I], [0, 0]] T."""
     n = A_L.shape[0]
-    lam, V, cond = real_eig(A_L)
-    min_abs = np.inf
-    for i in range(n):
-        min_abs = min(min_abs, abs(lam[i]))
-    if n and cond < 1e8 and min_abs > 1e-12:
-        Vi = np.linalg.inv(V)
-        e = np.exp(lam * T)
-        g = (e - 1.0) / lam
-        Phi[:, :] = ((V * e) @ Vi).real
-        Gamma[:, :] = ((V * g) @ Vi).real
-        return
     aug = np.zeros((2 * n, 2 * n))
     aug[:n, :n] = A_L * T
     for i in range(n):
@@ -192,6 +177,39 @@ def observer_discretisation(A_L, T, Phi, Gamma):
     E = _expm(aug)
     Phi[:, :] = E[:n, :n]
     Gamma[:, :] = E[:n, n:]
+
+
+@njit(**JIT)
+def observer_discretisation(A_L, T, Phi, Gamma):
+    """Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds (n_e×n_e): by the real eigen-decomposition A_L = W Λ W⁻¹
+    (``real_blocks``) when it is well conditioned and has no zero eigenvalue — per block, e^{λT} and (e^{λT} − 1)/λ,
+    a pair a ± ib giving e^{aT}[[cos bT, sin bT], [−sin bT, cos bT]] and the same form of (e^{zT} − 1)/z, z = a + ib —
+    else by the exponential of [[A_L, I], [0, 0]] T."""
+    n = A_L.shape[0]
+    ok, W, re, im, cond = real_blocks(A_L)
+    min_abs = np.inf
+    for i in range(n):
+        min_abs = min(min_abs, math.hypot(re[i], im[i]))
+    if not (ok and n and cond < 1e8 and min_abs > 1e-12):
+        _discretise_by_expm(A_L, T, Phi, Gamma)
+        return
+    E, G = np.zeros((n, n)), np.zeros((n, n))
+    j = 0
+    while j < n:
+        if im[j] == 0.0 or j == n - 1:
+            e = math.exp(re[j] * T)
+            E[j, j], G[j, j] = e, (e - 1.0) / re[j]
+            j += 1
+        else:
+            z = complex(re[j], im[j])
+            ez = cmath.exp(z * T)
+            g = (ez - 1.0) / z
+            E[j, j], E[j, j + 1], E[j + 1, j], E[j + 1, j + 1] = ez.real, ez.imag, -ez.imag, ez.real
+            G[j, j], G[j, j + 1], G[j + 1, j], G[j + 1, j + 1] = g.real, g.imag, -g.imag, g.real
+            j += 2
+    Wi = np.linalg.inv(W)
+    Phi[:, :] = W @ E @ Wi
+    Gamma[:, :] = W @ G @ Wi
 
 
 @njit(**JIT)
