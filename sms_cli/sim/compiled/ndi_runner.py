@@ -221,13 +221,15 @@ class NdiCompiledSimulation(CompiledSimulation):
 
     def warm_groups(self) -> list:
         """The kernel calls of ``run`` on throw-away data (``sms_cli.sim.compiled.warmup``), callees first: the plant
-        step (with the joint stops: the stop law's step), the wheel inertia, then the loop on zero ticks (which
-        compiles the NDI law's kernels for the array layouts it passes them; the law's own calls, on contiguous
-        arrays, are the Python loop's); the recording's momenta and encoding."""
+        step (with the joint stops: the stop law's step), the wheel inertia, then the loop on zero ticks; the NDI
+        law's kernels in a group of their own (the loop calls them with the Python loop's argument types, so another
+        lane compiles them while this one compiles the plant, and the loop finds them cached); the recording's
+        momenta and encoding."""
         from sms_cli.recording.encoding import warm_call
         from sms_cli.sim.compiled.dynamics import workspace
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.compiled.warmup import KernelCall
+        from sms_cli.sim.laws.ndi import ndi_warm_calls
 
         sm = self.sm
         tree = self._tree_args()
@@ -276,4 +278,4 @@ class NdiCompiledSimulation(CompiledSimulation):
             if sm.wheels:
                 momenta.append(KernelCall(f"{mod}.momentum_control:locked_velocities_of", (
                     np.eye(sm.nx)[None].copy(), np.zeros((1, sm.nx)), np.empty((1, 3))), cost=1.0))
-        return [loop, momenta]
+        return [loop, ndi_warm_calls(self.ndi), momenta]
