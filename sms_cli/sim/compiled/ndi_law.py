@@ -119,7 +119,7 @@ def _expm(A):
 
 # LAPACK's dgeev as numba's own eig calls it (by symbol name, so the callers stay cacheable). numba's eig of a real
 # matrix refuses complex eigenvalues and its complex path (zgeev on A as complex, then complex inverses) costs 2-3x
-# more to run and about 20 s more to compile. The binding is numba's private API: a numba without it discretises by
+# more to run. The binding is numba's private API: a numba without it discretises by
 # the Padé exponential (``_discretise_by_expm``), same results to round-off.
 try:
     from numba.np.linalg import _LAPACK
