@@ -17,8 +17,9 @@ Speed: ``linprog`` builds and presolves the LP at every call (about 1 ms for 24 
 allocator keeps two HiGHS instances instead (the HiGHS that scipy bundles, ``scipy.optimize._highspy``,
 the solver behind ``linprog(method="highs")``): the minimum-thrust LP, of which only the six row bounds
 change between solves, and the reach LP, of which only the s column's six coefficients (−w) change; the
-dual simplex restarts from each one's last basis (about 60 µs per solve; a saturated command, which takes
-the minimum-thrust LP (infeasible), the reach LP and the minimum-thrust LP again, about 0.2 ms;
+dual simplex restarts from each one's last basis (60 to 110 µs per solve, the fewer simplex iterations the
+closer successive commands; a saturated command takes three: the minimum-thrust LP (infeasible), the reach
+LP and the minimum-thrust LP at s (1 − δ) w, 0.2 to 0.3 ms against 3.3 ms with fresh linprog calls;
 benches/bench_thrusters.py). Without that module (another scipy) it falls back to ``linprog``;
 ``Allocator(..., warm=False)`` forces it. Both give the same optimum (scale and total thrust;
 tests/test_thrusters.py and tests/test_allocation_saturated.py compare them and the LP duals), though not
@@ -117,10 +118,10 @@ def _run(h) -> str:
 
 
 def _persistent_highs(B: np.ndarray, fmax: np.ndarray, reach: bool):
-    """A HiGHS instance holding, with rows B x (+ s c) between row bounds changed per solve, either
-    (reach=False) min 1ᵀx, B x = 0, 0 ≤ x ≤ fmax, or (reach=True) the reach LP in (x, s):
-    max s, B x + s c = 0 (c = −w set per solve), 0 ≤ x ≤ fmax, 0 ≤ s ≤ 1; None when scipy's bundled
-    HiGHS module is not there."""
+    """A HiGHS instance holding either (reach=False) min 1ᵀx, B x = w, 0 ≤ x ≤ fmax, with w the six row
+    bounds set per solve (0 here), or (reach=True) the reach LP in (x, s): max s, B x + s c = 0,
+    0 ≤ x ≤ fmax, 0 ≤ s ≤ 1, with the s column c = −w set per solve (ones here); None when scipy's
+    bundled HiGHS module is not there."""
     try:
         from scipy.optimize._highspy import _core as hc
     except ImportError:
