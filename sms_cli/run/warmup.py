@@ -4,9 +4,9 @@ numba compiles a kernel on its first call after an install and caches the machin
 (``sms_cli.sim.compiled.warmup``); a mission's first ``sms run`` / ``simulate`` / ``analyze`` would
 pause for that (tens of seconds on 2 cores). This module lists, for each mission, the kernel calls
 its analysis and simulation stages make, on throw-away arrays of the same types (the objects that
-make the calls list them: ``IndexKernel.warm_call``, ``Simulation.kernel_groups``), drops calls
-another mission already lists with the same argument types, and compiles the rest in parallel
-lanes. Nothing is written but numba's cache. The setup scripts call it once after an install.
+make the calls list them: ``IndexKernel.warm_call``, ``Simulation.kernel_groups``, for a two-spacecraft
+mission ``FormationSimulation.kernel_groups``), drops calls another mission already lists with the same
+argument types, and compiles the rest in parallel lanes. Nothing is written but numba's cache. The setup scripts call it once after an install.
 """
 
 from __future__ import annotations
