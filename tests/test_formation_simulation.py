@@ -311,15 +311,21 @@ def test_an_interrupted_two_spacecraft_run_keeps_what_ran(tmp_path, monkeypatch)
     from sms_cli.formation import plant as plant_module
     from sms_cli.formation.stage import record_formation
 
-    real_step, calls = plant_module.TwoBodyPlant.step, {"n": 0}
+    from sms_cli.sim.compiled import pair as pair_module
 
-    def step(self, *a, **k):
-        calls["n"] += 1
-        if calls["n"] == 2000:  # t = 100 s at dt 0.05 s
-            raise KeyboardInterrupt
-        return real_step(self, *a, **k)
+    calls = {"n": 0}
 
-    monkeypatch.setattr(plant_module.TwoBodyPlant, "step", step)
+    def interrupting(real_step):
+        def step(self, *a, **k):
+            calls["n"] += 1
+            if calls["n"] == 2000:  # t = 100 s at dt 0.05 s
+                raise KeyboardInterrupt
+            return real_step(self, *a, **k)
+
+        return step
+
+    for cls in (plant_module.TwoBodyPlant, pair_module.PairPlant):  # either engine's plant step
+        monkeypatch.setattr(cls, "step", interrupting(cls.step))
     with pytest.raises(KeyboardInterrupt):
         record_formation(load_mission(S6), tmp_path, progress=False)
     sim = json.loads((tmp_path / "results.json").read_text())["simulate"]

@@ -22,7 +22,7 @@ RUN_AFTER_PLAN = textwrap.dedent('''
     from sms_cli.analysis.stage import analyze_mission
     from sms_cli.mission.load import load_mission
     from sms_cli.run.warmup import plan_missions
-    from sms_cli.sim.stage import record_simulation
+    from sms_cli.sim.stage import run_simulation
 
     def signatures():
         out = {}
@@ -43,7 +43,7 @@ RUN_AFTER_PLAN = textwrap.dedent('''
     loaded = load_mission(run)
     if loaded.mission.analysis is not None:
         analyze_mission(loaded, None, plots=False, progress=False)
-    record_simulation(loaded, Path(sys.argv[3]), progress=False)
+    run_simulation(loaded, Path(sys.argv[3]), progress=False)
     after = signatures()
     print(json.dumps({"calls": plan.n_calls, "new": {k: after[k] - before.get(k, 0) for k in after
                                                      if after[k] != before.get(k, 0)}}))
@@ -82,6 +82,23 @@ def test_an_arm_mission_on_the_general_compiled_loop_compiles_nothing_after_the_
     mission = ROOT / "missions/caldera_s2_arm.yaml"
     got = _run_after_plan(tmp_path, [mission], mission)
     assert got["new"] == {}
+
+
+def test_a_two_spacecraft_run_compiles_nothing_after_the_warm_up(tmp_path):
+    """Planned from the shipped S6 (the internal pair's reaction, a controlled shape, the HIL export) and the capture
+    mission, then short runs of both on the compiled plant step (their recording included): no new signature; the
+    plan holds the pair step once (both missions' calls have the same types)."""
+    from sms_cli.run.warmup import plan_missions
+
+    planned = [ROOT / "missions/vicariotto_s6_relative_hil.yaml", ROOT / "missions/caldera_capture_tumbling.yaml"]
+    plan = plan_missions(planned)
+    kernels = [c.kernel for g in plan.groups for c in g]
+    assert kernels.count("sms_cli.sim.compiled.pair:pair_rkmk4_step") == 1
+    for name, extra in (("vicariotto_s6_relative_hil", "duration: 2 s"), ("caldera_capture_tumbling", "duration: 1.5 s")):
+        mission = tmp_path / f"{name}_short.yaml"
+        mission.write_text(f"extends: {ROOT / 'missions' / name}.yaml\nformation: {{{extra}}}\n")
+        got = _run_after_plan(tmp_path, planned, mission)
+        assert got["new"] == {}, name
 
 
 def test_a_kernel_with_the_same_argument_types_is_planned_once():

@@ -79,6 +79,14 @@ def pose_potential(g: pin.SE3, g_des: pin.SE3, kp_linear: np.ndarray, kp_angular
     return PoseError(0.5 * float(r @ (kp_linear * r)) + float(phi), grad, r, angle)
 
 
+def pose_potential_warm_call():
+    """``pose_potential``'s kernel call on throw-away arrays of its argument types (``sms_cli.sim.compiled.warmup``)."""
+    from sms_cli.sim.compiled.warmup import KernelCall
+
+    return KernelCall("sms_cli.sim.compiled.momentum_laws:trace_potential", (np.ones(3), np.eye(3), np.eye(3), np.empty(3)),
+                      cost=0.3)
+
+
 @dataclass
 class Gains:
     """One subsystem's diagonal gains: K_p (3 linear N/m, 3 angular N m/rad) and K_d (6: N s/m, N m s/rad)."""

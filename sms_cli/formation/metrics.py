@@ -48,8 +48,8 @@ def _push_metrics(i: int, push, t: np.ndarray, H: np.ndarray) -> dict:
     return out
 
 
-def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, steps: int) -> dict:
-    """The run's metrics (see the module docstring)."""
+def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, steps: int, engine: str = "python") -> dict:
+    """The run's metrics (see the module docstring); ``engine``: the plant step that ran (``timing.engine``)."""
     t = trace["t"]
     out: dict = {"master": names[0], "other": names[1], "law": spec.relative_law, "actuation": spec.actuation}
     pos = np.linalg.norm(trace["shape_position"], axis=1)
@@ -108,6 +108,6 @@ def formation_metrics(trace: dict, spec, names: tuple[str, str], wall_s: float, 
                                         "torque_residual_peak_Nm": float(np.max(np.linalg.norm(F[:, 3:] - D[:, 3:], axis=1)))}
     dt_sample = float(t[1] - t[0]) if t.size > 1 else 0.0
     out["saturation_time_s"] = float(np.count_nonzero(trace["saturated"]) * dt_sample)
-    out["timing"] = {"steps": steps, "wall_s": wall_s, "us_per_step": 1e6 * wall_s / max(steps, 1),
+    out["timing"] = {"engine": engine, "steps": steps, "wall_s": wall_s, "us_per_step": 1e6 * wall_s / max(steps, 1),
                      "real_time_factor": float(t[-1]) / wall_s if wall_s > 0 else None}
     return out

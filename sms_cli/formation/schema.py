@@ -189,6 +189,11 @@ class FormationSpec(StrictModel):
         "plain", description="plain: RKMK4 on both spacecraft's absolute velocities; decomposed: Vicariotto 2023's HIL "
                              "integrator (L1159-L1167) on the locked, shape and joint rates [V_L; V_E; θ̇] (same "
                              "trajectories to O(dt⁴), ~15x the cost per step)")
+    engine: Literal["auto", "python"] = Field(
+        "auto", description="the plant step of the plain integrator: auto: compiled (numba; both spacecraft's models "
+                            "rigid trees of 1-DoF joints on a free-flying base, which every two-spacecraft mission is), "
+                            "else Pinocchio's; python: always Pinocchio's (the reference). The decomposed integrator is "
+                            "Python")
     facility: str | None = Field(
         None, description="a hardware-in-the-loop facility file (sms export hil --facility): when given, the run "
                           "also exports the facility robots' commands and the workspace comparison into <results>/hil/")

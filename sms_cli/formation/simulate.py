@@ -35,6 +35,30 @@ class FormationResult:
     wall_s: float
     divergence: str = ""
     capture: dict | None = None
+    engine: str = "python"
+
+
+@dataclass(frozen=True)
+class PairInterface:
+    """The wrenches between the two bodies at a plant stage: the internal pair's reaction to ``F2`` (6, body 2's base
+    frame; None: none) on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose g12 = g1⁻¹ g2 (so that the pair
+    stays equal and opposite, total momentum conserved, while the bodies turn), and the engaged ``capture``
+    interface (None: none). Called as interface(q, v) it evaluates them with Pinocchio (``TwoBodyPlant.step``, the
+    reference); the compiled step (``sms_cli.sim.compiled.pair``) reads the fields and evaluates them itself."""
+
+    plant: object
+    F2: np.ndarray | None = None
+    capture: object | None = None
+
+    def __call__(self, qs: np.ndarray, vs: np.ndarray) -> list:
+        out = []
+        if self.F2 is not None:
+            p = self.plant
+            g12 = p.base_pose(qs, 0).actInv(p.base_pose(qs, 1))
+            out.append((p.bodies[0].base_frame_id, -(g12.dualAction @ self.F2)))
+        if self.capture is not None:
+            out += self.capture.wrenches(qs, vs)
+        return out
 
 
 class FormationSimulation:
@@ -56,6 +80,7 @@ class FormationSimulation:
         locate = locate or (lambda path: None)
         self.capture = (CapturePhase(spec.capture, self.plant, SERVICER, mission.client.name, float(spec.dt), locate)
                         if spec.capture is not None else None)
+        self.pair = None  # the compiled plant step (sms_cli.sim.compiled.pair), made by _stepper when it runs
         self.step = self._stepper(spec.integrator)
         self.drives = self._thruster_drives(locate)
         servicer_body = self.plant.body(SERVICER)
@@ -135,14 +160,37 @@ class FormationSimulation:
                     f"({ts.firing_cycle:g} s)", locate(("formation", "control_rate")), "formation.control_rate",
                     f"set formation.control_rate to {1 / ts.firing_cycle:g} Hz or a divisor of it")])
             view = SimpleNamespace(model=self.plant.model, base_joint_id=body.base_joint_id)
-            drives.append((i, ThrusterDrive(view, ts)))
+            on_change = (lambda j=body.base_joint_id: self.pair.refresh_body(j)) if self.pair is not None else None
+            drives.append((i, ThrusterDrive(view, ts, on_change=on_change)))
         return drives
+
+    @property
+    def engine(self) -> str:
+        """Which plant step runs: "python" (Pinocchio's) or "python, compiled plant" (``formation.engine``: auto), as
+        the single-spacecraft simulation's ``timing.engine`` says."""
+        return "python" if self.pair is None else "python, compiled plant"
 
     def _stepper(self, integrator: str):
         """step(q, v, dt, tau, base_wrenches, interface) -> (q, v) of the chosen integrator (built after every frame
-        is added to the plant)."""
+        is added to the plant): with the plain integrator and ``engine: auto``, the compiled step where both models
+        flatten (``sms_cli.sim.compiled.pair``), else ``TwoBodyPlant.step``."""
         if integrator == "plain":
-            return self.plant.step
+            from sms_cli.sim.compiled.pair import PairPlant, unsupported_reason
+
+            if self.spec.engine == "python" or unsupported_reason(self.plant) is not None:
+                return self.plant.step
+            self.pair = pair = PairPlant(self.plant)
+
+            def compiled_step(q, v, dt, tau, base_wrenches, interface=None):
+                if interface is None:
+                    return pair.step(q, v, dt, tau, base_wrenches)
+                if not isinstance(interface, PairInterface):  # any other wrenches: the reference step evaluates them
+                    return self.plant.step(q, v, dt, tau, base_wrenches, interface)
+                cap = interface.capture
+                return pair.step(q, v, dt, tau, base_wrenches, interface.F2, None if cap is None else (
+                    cap.frame_a, cap.frame_b, cap.target, cap.gains.K, cap.gains.D))
+
+            return compiled_step
         from sms_cli.formation.plant import DecomposedIntegrator
 
         decomposed = DecomposedIntegrator(self.plant)
@@ -152,18 +200,6 @@ class FormationSimulation:
             return qn, decomposed.to_plain(qn, y)
 
         return step
-
-    def _reaction(self, F2: np.ndarray):
-        """interface(q, v) for the plant step: on body 1's base, −Ad_{g12}⁻ᵀ F2 at the stage's relative pose, so
-        that the pair stays equal and opposite (total momentum conserved) while the bodies turn."""
-        p = self.plant
-        frame = p.bodies[0].base_frame_id
-
-        def reaction(qs, _vs):
-            g12 = p.base_pose(qs, 0).actInv(p.base_pose(qs, 1))
-            return [(frame, -(g12.dualAction @ F2))]
-
-        return reaction
 
     def _propellant(self, i: int) -> float:
         """Propellant used so far by body i's thrusters (kg; 0 without thrusters)."""
@@ -190,13 +226,11 @@ class FormationSimulation:
             out[i] = d.delivered.copy()
         return out[0], out[1]
 
-    def _interface(self, reaction):
-        """interface(q, v) for the plant step: the internal pair's reaction and the capture interface, or None."""
-        if self.capture is None or self.capture.gains is None:
-            return reaction
-        if reaction is None:
-            return self.capture.wrenches
-        return lambda qs, vs: [*reaction(qs, vs), *self.capture.wrenches(qs, vs)]
+    def _interface(self, F2):
+        """The plant step's interface: the internal pair's reaction to F2 (None: none) and the engaged capture
+        interface (a ``PairInterface``), or None when neither acts."""
+        capture = self.capture if self.capture is not None and self.capture.gains is not None else None
+        return None if F2 is None and capture is None else PairInterface(self.plant, F2, capture)
 
     def _arm_hold(self, q, v) -> np.ndarray:
         """The servicer's arm torques: the joint PD of ``formation.arm_hold`` about the initial configuration,
@@ -218,7 +252,23 @@ class FormationSimulation:
         return F[0], F[1]
 
     # ---------------------------------------------------------------- loop
+    def kernel_groups(self) -> list:
+        """The compiled kernels a run makes, as warm-up calls (``sms_cli.sim.compiled.warmup``, ``sms warmup``): the
+        compiled plant step, the relative law's pose potential (a controlled subsystem), the recording's /tf of the
+        world link poses and its encoding."""
+        from sms_cli.formation.laws import pose_potential_warm_call
+        from sms_cli.recording.encoding import warm_call
+        from sms_cli.recording.recorder import world_block_warm_call
+
+        groups = [[self.pair.warm_call()]] if self.pair is not None else []
+        if self.law.locked.controlled or self.law.shape.controlled:
+            groups.append([pose_potential_warm_call()])
+        return groups + [[world_block_warm_call(), warm_call()]]
+
     def run(self) -> FormationResult:
+        from sms_cli.sim.compiled.warmup import warm
+
+        warm(self.kernel_groups())  # the first run after an install compiles the kernels (cached afterwards)
         spec, p = self.spec, self.plant
         dt = float(spec.dt)
         n_steps = int(round(spec.duration / dt))
@@ -246,7 +296,7 @@ class FormationSimulation:
                         drive.command(t, ideal[i])
                         ideal[i] = np.zeros(6)
                     # F2 held in frame 2; its reaction on body 1 follows the relative pose at every stage
-                    reaction = self._reaction(cmd.F2) if self.internal_pair else None
+                    reaction = cmd.F2 if self.internal_pair else None
                     interface = self._interface(reaction)
                 if sample:
                     self._sample(rows, t, q, v, cmd, states)
@@ -288,7 +338,7 @@ class FormationSimulation:
         wall = time.perf_counter() - wall0
         trace = {key: np.asarray(val) for key, val in rows.items() if key != "_tf"}
         t_end = float(trace["t"][-1]) if "t" in trace else 0.0
-        result = FormationResult(status, t_end, k, trace, wall, divergence)
+        result = FormationResult(status, t_end, k, trace, wall, divergence, engine=self.engine)
         self.final_q, self.final_v = q, v
         if self.capture is not None:
             result.capture = self.capture.metrics(q, v, trace["t"], trace["H2_world"])

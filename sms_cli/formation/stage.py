@@ -114,7 +114,7 @@ def record_formation(loaded: LoadedMission, out_dir: Path, mcap_path: Path | Non
             "mission": loaded.mission.name, "mission_file": str(loaded.path), "status": result.status,
             "divergence": result.divergence or None, "t_end_s": result.t_end, "steps": result.steps,
             "formation": {"master": sim.names[0], "other": sim.names[1], "relative_motion": RELATIVE_MOTION},
-            **formation_metrics(result.trace, spec, sim.names, result.wall_s, result.steps),
+            **formation_metrics(result.trace, spec, sim.names, result.wall_s, result.steps, result.engine),
         }
         if result.capture is not None:
             section["capture"] = result.capture

@@ -167,6 +167,16 @@ def _topic_template(spec: list[tuple[str, int]]) -> Template:
     return t.done()
 
 
+def world_block_warm_call():
+    """The kernel call ``McapRecorder.write_block`` makes on a block of WORLD link poses (its parent-relative
+    /tf: ``dynamics.relative_poses``), on one throw-away pose (``sms_cli.sim.compiled.warmup``)."""
+    from sms_cli.sim.compiled.warmup import KernelCall
+
+    pose = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+    return KernelCall("sms_cli.sim.compiled.dynamics:relative_poses", (pose, np.full(1, -1, dtype=np.int64), np.empty((1, 7))),
+                      cost=0.3)
+
+
 class McapRecorder:
     """Records a simulation to an MCAP file: see the module docstring for topics and semantics.
 

@@ -4,9 +4,9 @@ numba compiles a kernel on its first call after an install and caches the machin
 (``sms_cli.sim.compiled.warmup``); a mission's first ``sms run`` / ``simulate`` / ``analyze`` would
 pause for that (tens of seconds on 2 cores). This module lists, for each mission, the kernel calls
 its analysis and simulation stages make, on throw-away arrays of the same types (the objects that
-make the calls list them: ``IndexKernel.warm_call``, ``Simulation.kernel_groups``), drops calls
-another mission already lists with the same argument types, and compiles the rest in parallel
-lanes. Nothing is written but numba's cache. The setup scripts call it once after an install.
+make the calls list them: ``IndexKernel.warm_call``, ``Simulation.kernel_groups``, for a two-spacecraft
+mission ``FormationSimulation.kernel_groups``), drops calls another mission already lists with the same
+argument types, and compiles the rest in parallel lanes. Nothing is written but numba's cache. The setup scripts call it once after an install.
 """
 
 from __future__ import annotations
@@ -55,6 +55,8 @@ def plan_missions(paths: list[Path]) -> WarmPlan:
         loaded = load_mission(path)
         if loaded.mission.robot is None:  # (a budget-only mission)
             continue
+        if loaded.mission.formation is not None:
+            _plan_formation(loaded, plan)
         if loaded.mission.analysis is None and loaded.mission.simulation is None:
             continue
         sm = compile_system(loaded)  # once, for both stages
@@ -85,7 +87,7 @@ def _plan_simulation(loaded, sm, plan: WarmPlan) -> None:
     from sms_cli.sim.stage import prepared_simulation
 
     mission = loaded.mission
-    if mission.simulation is None:  # (two spacecraft: formation:, the Python loop)
+    if mission.simulation is None:  # (two spacecraft: formation:, _plan_formation)
         return
     sm, spec, _ = prepared_simulation(loaded, sm)
     with tempfile.TemporaryDirectory(prefix="sms_warmup_") as tmp:
@@ -98,6 +100,16 @@ def _plan_simulation(loaded, sm, plan: WarmPlan) -> None:
             plan.notes.append(f"{mission.name}: simulation kernels left to its first run ({exc.problems[0].message})")
             return
         plan.add(sim.kernel_groups())
+
+
+def _plan_formation(loaded, plan: WarmPlan) -> None:
+    """The calls of a two-spacecraft run (``FormationSimulation.kernel_groups``: its engine's plant step, its law's,
+    its recording's)."""
+    from sms_cli.formation.simulate import FormationSimulation
+    from sms_cli.formation.stage import prepared
+
+    servicer, client = prepared(loaded)
+    plan.add(FormationSimulation(loaded.mission, servicer, client, None, False, loaded.source.locate).kernel_groups())
 
 
 def warm_missions(paths: list[Path], lanes: int | None = None) -> dict:
