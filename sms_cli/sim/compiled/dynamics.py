@@ -621,6 +621,26 @@ def hybrid_dynamics(parent, kind, axis, place_R, place_p, inertia, leaf_IA, arma
         etadd[k] = acc
 
 
+@njit(**HOT)
+def rk4_advance(stage, dt, v, acc, kk, th, vs):
+    """RKMK4 after stage 0, 1 or 2: the next stage's tangent step th = c·v (stage 0) or c·k (the stage's dexp⁻¹-corrected
+    slope kk) and velocity vs = v + c·acc[stage], c = dt/2, dt/2, dt."""
+    c = 0.5 * dt if stage < 2 else dt
+    for a in range(v.shape[0]):
+        th[a] = c * (v[a] if stage == 0 else kk[a])
+        vs[a] = v[a] + c * acc[stage, a]
+
+
+@njit(**HOT)
+def rk4_combine(dt, v, ksum, kk, acc, th, v_out):
+    """RKMK4's final tangent step th = dt/6·(v + 2(k2 + k3) + k4) (``ksum`` = k2 + k3, ``kk`` = k4) and velocity
+    v_out = v + dt/6·(a1 + 2(a2 + a3) + a4), the stages' accelerations the rows of ``acc``."""
+    c = dt / 6.0
+    for a in range(v.shape[0]):
+        th[a] = c * (v[a] + 2.0 * ksum[a] + kk[a])
+        v_out[a] = v[a] + c * (acc[0, a] + 2.0 * (acc[1, a] + acc[2, a]) + acc[3, a])
+
+
 @njit(**JIT)
 def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
                neg_omega2, neg_2zo, spring_v, spring_q, spring_k, spring_c, spring_rest,
@@ -665,18 +685,14 @@ def rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature,
                 for a in range(nv):
                     ksum[a] += kk[a]  # k2 + k3
         if stage < 3:
+            rk4_advance(stage, dt, v, acc, kk, th, vs)
             c = h if stage < 2 else dt
-            for a in range(nv):
-                th[a] = c * (v[a] if stage == 0 else kk[a])
-                vs[a] = v[a] + c * acc[stage, a]
             for k in range(ne):
                 e_next = eta[k] + c * md[5, k]
                 md[5, k] = etad[k] + c * md[stage, k]
                 md[4, k] = e_next
+    rk4_combine(dt, v, ksum, kk, acc, th, v_out)
     c = dt / 6.0
-    for a in range(nv):
-        th[a] = c * (v[a] + 2.0 * ksum[a] + kk[a])
-        v_out[a] = v[a] + c * (acc[0, a] + 2.0 * (acc[1, a] + acc[2, a]) + acc[3, a])
     for k in range(ne):
         eta_out[k] = eta[k] + c * md[6, k]
         etad_out[k] = etad[k] + c * md[7, k]

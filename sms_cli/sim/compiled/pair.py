@@ -36,6 +36,8 @@ from sms_cli.sim.compiled.dynamics import (
     integrate,
     joint_transforms,
     motion_act_inv,
+    rk4_advance,
+    rk4_combine,
     world_placements,
 )
 from sms_cli.sim.compiled.se3 import jlog6, log6
@@ -131,7 +133,6 @@ def pair_rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, arma
     base wrenches), the interface wrenches (``interface_forces``) evaluated at every stage. ``roots``: the forest
     indices of the two free-flyers; ``ws``: ``dynamics.workspace`` of the forest; ``pws``: ``pair_workspace``."""
     nv = v.shape[0]
-    h = 0.5 * dt
     st = ws[18]
     acc, th, vs, kk, ksum = st[0:4], st[4], st[5], st[6], st[7]
     qs, tau_s, root_dI, root_f = ws[19], ws[21], ws[22], ws[23]  # root_dI, root_f stay zero (no modes)
@@ -160,14 +161,8 @@ def pair_rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, arma
                 for a in range(nv):
                     ksum[a] += kk[a]  # k2 + k3
         if stage < 3:
-            c = h if stage < 2 else dt
-            for a in range(nv):
-                th[a] = c * (v[a] if stage == 0 else kk[a])
-                vs[a] = v[a] + c * acc[stage, a]
-    c = dt / 6.0
-    for a in range(nv):
-        th[a] = c * (v[a] + 2.0 * ksum[a] + kk[a])
-        v_out[a] = v[a] + c * (acc[0, a] + 2.0 * (acc[1, a] + acc[2, a]) + acc[3, a])
+            rk4_advance(stage, dt, v, acc, kk, th, vs)
+    rk4_combine(dt, v, ksum, kk, acc, th, v_out)
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
 
 
