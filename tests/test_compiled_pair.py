@@ -153,6 +153,22 @@ def test_one_step_equals_the_pinocchio_step(setup, kind, seed):
         assert np.abs(vp - v0).max() > 1e-4
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_the_monitors_wrench_pair_equals_interface_wrenches(setup, seed):
+    """``PairPlant.capture_wrenches`` (what the capture monitor samples every step on the compiled engine) gives the
+    frames and wrenches of ``capture.interface_wrenches`` (Pinocchio) at random states, to 1e-12 of their scale."""
+    plant, pair, fa, fb = setup
+    q, v, _, rng = _state(plant, seed)
+    cap, gains = _capture(plant, fa, fb, q, rng)
+    want = C.interface_wrenches(plant.model, plant.model.createData(), q, v, fa, fb, cap[2], gains)
+    got = pair.capture_wrenches(q, v, cap)
+    assert [f for f, _ in got] == [f for f, _ in want] == [fa, fb]
+    scale = max(np.abs(F).max() for _, F in want)
+    assert scale > 1e-3
+    for (_, F), (_, W) in zip(got, want):
+        assert np.abs(F - W).max() <= 1e-12 * scale
+
+
 def test_the_forest_is_the_combined_model(setup):
     """Forest joint i is the combined model's joint i + 1: same placements, inertias, q and v indices; roots at
     both free-flyers."""

@@ -68,9 +68,16 @@ class CapturePhase:
             return []
         return C.interface_wrenches(self.plant.model, self.data, q, v, self.frame_a, self.frame_b, self.target, self.gains)
 
-    def sample(self, q: np.ndarray, v: np.ndarray) -> None:
-        if self.gains is not None:
+    def sample(self, q: np.ndarray, v: np.ndarray, pair=None) -> None:
+        """Update the monitor's peaks with the interface wrenches at (q, v), by the compiled ``pair``
+        (``sms_cli.sim.compiled.pair.PairPlant``) when given, else with Pinocchio."""
+        if self.gains is None:
+            return
+        if pair is None:
             self.monitor.sample(self.wrenches(q, v))
+        else:
+            self.monitor.sample(pair.capture_wrenches(q, v, (self.frame_a, self.frame_b, self.target, self.gains.K,
+                                                             self.gains.D)))
 
     def metrics(self, q: np.ndarray, v: np.ndarray, t: np.ndarray, H2: np.ndarray) -> dict:
         """Peak interface force and torque, stack rate, momentum before and after (world frame), offset at t_c.

@@ -254,13 +254,15 @@ class FormationSimulation:
     # ---------------------------------------------------------------- loop
     def kernel_groups(self) -> list:
         """The compiled kernels a run makes, as warm-up calls (``sms_cli.sim.compiled.warmup``, ``sms warmup``): the
-        compiled plant step, the relative law's pose potential (a controlled subsystem), the recording's /tf of the
+        compiled plant step (and the capture monitor's wrench pair), the relative law's pose potential (a controlled subsystem), the recording's /tf of the
         world link poses and its encoding."""
         from sms_cli.formation.laws import pose_potential_warm_call
         from sms_cli.recording.encoding import warm_call
         from sms_cli.recording.recorder import world_block_warm_call
 
         groups = [[self.pair.warm_call()]] if self.pair is not None else []
+        if self.pair is not None and self.capture is not None:
+            groups.append([self.pair.capture_warm_call()])  # the capture monitor's samples
         if self.law.locked.controlled or self.law.shape.controlled:
             groups.append([pose_potential_warm_call()])
         return groups + [[world_block_warm_call(), warm_call()]]
@@ -307,7 +309,7 @@ class FormationSimulation:
                     if self.capture.due(t):
                         self.capture.engage(t, q, v)
                         interface = self._interface(reaction)
-                    self.capture.sample(q, v)
+                    self.capture.sample(q, v, self.pair)
                 if self.arm_v.size:
                     tau[self.arm_v] = self._arm_hold(q, v)
                 if self.internal_pair:

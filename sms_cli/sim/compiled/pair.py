@@ -78,6 +78,40 @@ def _inverse_compose(R1, p1, R2, p2, R_out, p_out):
 
 
 @njit(**HOT)
+def capture_wrench_pair(parent, kind, axis, idx_v, R_rel, p_rel, v, f_joint, f_R, f_p, target_R, target_p, K, D, ws, pws):
+    """The capture interface's wrenches at the joint transforms (R_rel, p_rel) and the velocity v
+    (``sms_cli.formation.capture.interface_wrenches``): F_b = −Jlog6(g_e)ᵀ K e − D V_rel into ``pws[3][6]`` (frame b)
+    and F_a = −Ad_{b←a}ᵀ F_b into ``pws[3][7]`` (frame a), each in its frame's LOCAL axes at its origin."""
+    vel, Rs, ps, V, J, C = pws
+    oR, op = ws[16], ws[17]
+    world_placements(parent, R_rel, p_rel, oR, op)
+    body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
+    ja, jb = f_joint[CAPTURE_A], f_joint[CAPTURE_B]
+    compose(oR[ja], op[ja], f_R[CAPTURE_A], f_p[CAPTURE_A], Rs[1], ps[1])  # g_a
+    compose(oR[jb], op[jb], f_R[CAPTURE_B], f_p[CAPTURE_B], Rs[2], ps[2])  # g_b
+    _inverse_compose(Rs[1], ps[1], Rs[2], ps[2], Rs[3], ps[3])  # g_ab = g_a⁻¹ g_b
+    _inverse_compose(target_R, target_p, Rs[3], ps[3], Rs[4], ps[4])  # g_e = g_t⁻¹ g_ab
+    motion_act_inv(f_R[CAPTURE_A], f_p[CAPTURE_A], vel[ja], V[1])  # V_a (frame a)
+    motion_act_inv(f_R[CAPTURE_B], f_p[CAPTURE_B], vel[jb], V[2])  # V_b (frame b)
+    motion_act_inv(Rs[3], ps[3], V[1], V[3])  # Ad_{b←a} V_a = g_ab⁻¹ acting on V_a
+    log6(Rs[4], ps[4], V[4])  # e
+    jlog6(Rs[4], ps[4], J, C)
+    for a in range(6):
+        ke = 0.0
+        for b in range(6):
+            ke += K[a, b] * V[4, b]
+        V[5, a] = ke  # K e
+    for a in range(6):
+        x = 0.0
+        for b in range(6):
+            x -= J[b, a] * V[5, b] + D[a, b] * (V[2, b] - V[3, b])
+        V[6, a] = x  # F_b
+    force_act(Rs[3], ps[3], V[6], V[7])  # Ad_{b←a}ᵀ F_b = F_b in frame a (g_ab acting on it)
+    for a in range(6):
+        V[7, a] = -V[7, a]  # F_a
+
+
+@njit(**HOT)
 def interface_forces(parent, kind, axis, idx_v, roots, R_rel, p_rel, v, f_joint, f_R, f_p, reaction, F2, capture,
                      target_R, target_p, K, D, tau, ws, pws):
     """tau += the generalized forces of the reaction (``reaction``: F2 (6), body 2's base frame) and of the capture
@@ -94,32 +128,8 @@ def interface_forces(parent, kind, axis, idx_v, roots, R_rel, p_rel, v, f_joint,
         add_frame_wrench(parent, kind, axis, idx_v, R_rel, p_rel, f_joint[REACTION_FRAME], f_R[REACTION_FRAME],
                          f_p[REACTION_FRAME], V[0], tau, f, g)
     if capture:
-        oR, op = ws[16], ws[17]
-        world_placements(parent, R_rel, p_rel, oR, op)
-        body_velocities(parent, kind, axis, R_rel, p_rel, idx_v, v, vel)
+        capture_wrench_pair(parent, kind, axis, idx_v, R_rel, p_rel, v, f_joint, f_R, f_p, target_R, target_p, K, D, ws, pws)
         ja, jb = f_joint[CAPTURE_A], f_joint[CAPTURE_B]
-        compose(oR[ja], op[ja], f_R[CAPTURE_A], f_p[CAPTURE_A], Rs[1], ps[1])  # g_a
-        compose(oR[jb], op[jb], f_R[CAPTURE_B], f_p[CAPTURE_B], Rs[2], ps[2])  # g_b
-        _inverse_compose(Rs[1], ps[1], Rs[2], ps[2], Rs[3], ps[3])  # g_ab = g_a⁻¹ g_b
-        _inverse_compose(target_R, target_p, Rs[3], ps[3], Rs[4], ps[4])  # g_e = g_t⁻¹ g_ab
-        motion_act_inv(f_R[CAPTURE_A], f_p[CAPTURE_A], vel[ja], V[1])  # V_a (frame a)
-        motion_act_inv(f_R[CAPTURE_B], f_p[CAPTURE_B], vel[jb], V[2])  # V_b (frame b)
-        motion_act_inv(Rs[3], ps[3], V[1], V[3])  # Ad_{b←a} V_a = g_ab⁻¹ acting on V_a
-        log6(Rs[4], ps[4], V[4])  # e
-        jlog6(Rs[4], ps[4], J, C)
-        for a in range(6):
-            ke = 0.0
-            for b in range(6):
-                ke += K[a, b] * V[4, b]
-            V[5, a] = ke  # K e
-        for a in range(6):
-            x = 0.0
-            for b in range(6):
-                x -= J[b, a] * V[5, b] + D[a, b] * (V[2, b] - V[3, b])
-            V[6, a] = x  # F_b
-        force_act(Rs[3], ps[3], V[6], V[7])  # Ad_{b←a}ᵀ F_b = F_b in frame a (g_ab acting on it)
-        for a in range(6):
-            V[7, a] = -V[7, a]  # F_a
         add_frame_wrench(parent, kind, axis, idx_v, R_rel, p_rel, ja, f_R[CAPTURE_A], f_p[CAPTURE_A], V[7], tau, f, g)
         add_frame_wrench(parent, kind, axis, idx_v, R_rel, p_rel, jb, f_R[CAPTURE_B], f_p[CAPTURE_B], V[6], tau, f, g)
 
@@ -164,6 +174,20 @@ def pair_rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, arma
             rk4_advance(stage, dt, v, acc, kk, th, vs)
     rk4_combine(dt, v, ksum, kk, acc, th, v_out)
     integrate(kind, axis, idx_q, idx_v, q, th, q_out)
+
+
+@njit(**JIT)
+def capture_wrenches(parent, kind, axis, place_R, place_p, idx_q, idx_v, q, v, f_joint, f_R, f_p, target_R, target_p, K,
+                     D, out, ws, pws):
+    """The capture interface's wrench pair at the state (q, v): out[0] = F_a (frame a), out[1] = F_b (frame b), each
+    in its frame's LOCAL axes at its origin (``capture_wrench_pair``; what the capture monitor samples every step)."""
+    R_rel, p_rel = ws[8], ws[9]
+    joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_rel, p_rel)
+    capture_wrench_pair(parent, kind, axis, idx_v, R_rel, p_rel, v, f_joint, f_R, f_p, target_R, target_p, K, D, ws, pws)
+    V = pws[3]
+    for a in range(6):
+        out[0, a] = V[7, a]
+        out[1, a] = V[6, a]
 
 
 def pair_workspace(n: int) -> tuple:
@@ -273,6 +297,18 @@ class PairPlant:
                         self._ws, self._pws)
         return q_out, v_out
 
+    def capture_wrenches(self, q: np.ndarray, v: np.ndarray, capture: tuple) -> list:
+        """[(frame a, F_a), (frame b, F_b)] at the state (q, v), as ``sms_cli.formation.capture.interface_wrenches``
+        gives them (each wrench [f; τ] in its frame's LOCAL axes at its origin); ``capture`` as in ``step``."""
+        fa, fb, target, K, D = capture
+        out = np.empty((2, 6))
+        parent, kind, axis, place_R, place_p, _, _, _, idx_q, idx_v = self._tree
+        capture_wrenches(parent, kind, axis, place_R, place_p, idx_q, idx_v, np.ascontiguousarray(q, dtype=float),
+                         np.ascontiguousarray(v, dtype=float), *self.frames(fa, fb), np.ascontiguousarray(target.rotation),
+                         np.array(target.translation), np.ascontiguousarray(K, dtype=float),
+                         np.ascontiguousarray(D, dtype=float), out, self._ws, self._pws)
+        return [(fa, out[0]), (fb, out[1])]
+
     def warm_call(self):
         """The step's kernel call on a throw-away state (``sms_cli.sim.compiled.warmup``): one signature for every
         interface kind (the interface is chosen by two flags)."""
@@ -284,3 +320,14 @@ class PairPlant:
         return KernelCall(f"{__name__}:pair_rkmk4_step",
                           (*self._tree, self.roots, q, v, np.zeros(self.plant.nv), 0.01, *self.frames(), False, np.zeros(6),
                            False, tR, tp, K, D, q.copy(), v.copy(), self._ws, self._pws), cost=12.0)
+
+    def capture_warm_call(self):
+        """``capture_wrenches``'s kernel call on a throw-away state (``sms_cli.sim.compiled.warmup``)."""
+        from sms_cli.sim.compiled.warmup import KernelCall
+
+        parent, kind, axis, place_R, place_p, _, _, _, idx_q, idx_v = self._tree
+        q = np.concatenate([b.system.q0 for b in self.plant.bodies]).astype(float)
+        tR, tp, K, D = self._no_capture
+        return KernelCall(f"{__name__}:capture_wrenches",
+                          (parent, kind, axis, place_R, place_p, idx_q, idx_v, q, np.zeros(self.plant.nv), *self.frames(),
+                           tR, tp, K, D, np.empty((2, 6)), self._ws, self._pws), cost=4.0)
