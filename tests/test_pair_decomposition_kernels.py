@@ -3,7 +3,7 @@ sms_cli/formation/decomposition.py) against an independent numpy implementation 
 decomposition.py's module docstring, written out here (the code the kernels replaced, kept only as this oracle):
 Pinocchio's ``Motion.action``, ``skew`` and ``SE3.toActionMatrixInverse``, numpy's LU solves and inverses.
 Matrices to 1e-12 relative; the four shipped two-spacecraft missions (short) give the same trace and metrics to 1e-9
-of their scale with the oracle patched in as with the kernels."""
+of their scale with the oracle (and test_pair_law_kernel's oracle law) patched in as with the kernels."""
 
 from __future__ import annotations
 
@@ -221,13 +221,15 @@ def _run(name: str, extra: str, tmp_path):
     ("caldera_capture_tumbling", ""),
 ])
 def test_shipped_missions_run_the_same_on_the_kernels_as_on_the_numpy_formulas(name, extra, tmp_path, monkeypatch):
-    """Every trace quantity and every metric (timing aside) to 1e-9 of its scale, the oracle's decompose and C*
-    patched in where the simulation and the law call them."""
+    """Every trace quantity and every metric (timing aside) to 1e-9 of its scale, the oracle's decompose and relative
+    law (test_pair_law_kernel.old_law_call, with this file's C*) patched in where the simulation calls them."""
+    from test_pair_law_kernel import old_law_call
+
     from sms_cli.formation import laws, plant
 
     new = _run(name, extra, tmp_path)
     monkeypatch.setattr(plant, "decompose", _old_decompose)
-    monkeypatch.setattr(laws, "coriolis", _old_coriolis)
+    monkeypatch.setattr(laws.RelativeLaw, "__call__", old_law_call)
     old = _run(name, extra, tmp_path)
     (a, ma_all), (p, mp_all) = new, old
     assert a.keys() == p.keys()

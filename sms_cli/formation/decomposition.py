@@ -30,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from sms_cli.sim.compiled import pair_decomposition as _k
+from sms_cli.sim.compiled import pair_law as _law
 
 I6 = np.eye(6)
 L_, E_ = slice(0, 6), slice(6, 12)
@@ -113,13 +114,15 @@ class PairDecomposition:
     def to_locked_shape(self, F1: np.ndarray, F2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(F_L, F_E) = S⁻ᵀ [F1; F2]: F_L = F1 + Ad⁻ᵀ F2 (total wrench, frame 1), F_E = F2 − A*ᵀ F_L (frame 2).
         F1 acts on body 1 in frame 1, F2 on body 2 in frame 2, each at its base-frame origin."""
-        F_L = F1 + self.Ad12_inv.T @ F2
-        return F_L, F2 - self.A_star.T @ F_L
+        F_L, F_E = np.empty(6), np.empty(6)
+        _law.to_locked_shape(self.Ad12_inv, self.A_star, _c(F1), _c(F2), F_L, F_E)
+        return F_L, F_E
 
     def to_bodies(self, F_L: np.ndarray, F_E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(F1, F2) = Sᵀ [F_L; F_E], the inverse of ``to_locked_shape``."""
-        F = self.S.T @ np.concatenate([F_L, F_E])
-        return F[L_], F[E_]
+        F1, F2 = np.empty(6), np.empty(6)
+        _law.to_bodies(self.S, _c(F_L), _c(F_E), F1, F2)
+        return F1, F2
 
     def shape_effort(self, F_E: np.ndarray,
                      actuated: Literal["both", "master", "other"] = "both") -> tuple[np.ndarray, np.ndarray]:
@@ -130,16 +133,12 @@ class PairDecomposition:
           system (total momentum changes by F1).
         - ``"other"``: F1 = 0, so F2 = (1 + M2 M̂1⁻¹) F_E with M̂1 = Adᵀ M1 Ad, and F_L = Ad⁻ᵀ F2.
         The implied locked wrench is ``to_locked_shape(F1, F2)[0]``."""
-        F_E = np.asarray(F_E, dtype=float)
-        z = np.zeros(6)
-        if actuated == "both":
-            return -self.Ad12_inv.T @ F_E, F_E.copy()
-        if actuated == "master":  # A*ᵀ F_L + F_E = 0 (the F2 row of Sᵀ)
-            return np.linalg.solve(self.A_star.T, -F_E), z
-        if actuated == "other":  # F_L = Ad⁻ᵀ F2, so F_E = F2 − A*ᵀ Ad⁻ᵀ F2 = (1 − Ad⁻¹ A*)ᵀ F2
-            P = I6 - self.Ad12_inv @ self.A_star
-            return z, np.linalg.solve(P.T, F_E)
-        raise ValueError(f"actuated must be 'both', 'master' or 'other', not {actuated!r}")
+        modes = {"both": _law.BOTH, "master": _law.MASTER, "other": _law.OTHER}
+        if actuated not in modes:
+            raise ValueError(f"actuated must be 'both', 'master' or 'other', not {actuated!r}")
+        F1, F2 = np.empty(6), np.empty(6)
+        _law.shape_effort(self.Ad12_inv, self.A_star, _c(F_E), modes[actuated], F1, F2)
+        return F1, F2
 
     # ------------------------------------------------------------------ rates
     def S_inv_rate(self, V12: np.ndarray, M1_dot: np.ndarray | None = None,
@@ -183,20 +182,16 @@ def coriolis(dec: PairDecomposition, xi1: np.ndarray, xi2: np.ndarray, V12: np.n
     return _k.pair_coriolis(dec.M1, dec.M2, dec.Ad12_inv, dec.M_tot, dec.A_star, dec.S_inv, _c(xi1), _c(xi2), _c(V12))
 
 
-def warm_calls(coriolis: bool = False, rates: bool = False) -> list:
-    """The kernel calls of ``decompose`` (and of ``coriolis``, ``PairDecomposition.S_inv_rate`` when asked) on
-    throw-away arrays of their argument types (``sms_cli.sim.compiled.warmup``), callees first."""
+def warm_calls(rates: bool = False) -> list:
+    """The kernel calls of ``decompose`` (and of ``PairDecomposition.S_inv_rate`` when asked) on throw-away arrays of
+    their argument types (``sms_cli.sim.compiled.warmup``)."""
     from sms_cli.sim.compiled.warmup import KernelCall
 
     mod = "sms_cli.sim.compiled.pair_decomposition"
-    M, v, z = I6.copy(), np.zeros(6), np.zeros((6, 6))
-    S = np.eye(12)
-    calls = [KernelCall(f"{mod}:pair_decompose", (M, M, I6.copy(), np.zeros(3)), cost=1.5)]
-    if rates or coriolis:
-        calls.append(KernelCall(f"{mod}:s_inv_rate", (M, M, M, M, v, z, z), cost=1.0))
-    if coriolis:
-        calls += [KernelCall(f"{mod}:rigid_coriolis", (M, v), cost=0.5),
-                  KernelCall(f"{mod}:pair_coriolis", (M, M, M, M, M, S, v, v, v), cost=1.0)]
+    M, z = I6.copy(), np.zeros((6, 6))
+    calls = [KernelCall(f"{mod}:pair_decompose", (M, M, np.eye(3), np.zeros(3)), cost=1.5)]
+    if rates:
+        calls.append(KernelCall(f"{mod}:s_inv_rate", (M, M, M, M, np.zeros(6), z, z), cost=1.0))
     return calls
 
 

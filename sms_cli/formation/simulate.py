@@ -254,18 +254,15 @@ class FormationSimulation:
     # ---------------------------------------------------------------- loop
     def kernel_groups(self) -> list:
         """The compiled kernels a run makes, as warm-up calls (``sms_cli.sim.compiled.warmup``, ``sms warmup``): the
-        compiled plant step, the locked/shape decomposition (and C* for a free-flying or hierarchical law), the relative
-        law's pose potential (a controlled subsystem), the recording's /tf of the world link poses and its encoding."""
+        compiled plant step, the locked/shape decomposition (and the rate of S⁻¹ for the decomposed integrator), the
+        relative law (C*, the pose potentials), the recording's /tf of the world link poses and its encoding."""
         from sms_cli.formation.decomposition import warm_calls
-        from sms_cli.formation.laws import pose_potential_warm_call
+        from sms_cli.formation.laws import law_warm_call
         from sms_cli.recording.encoding import warm_call
         from sms_cli.recording.recorder import world_block_warm_call
 
         groups = [[self.pair.warm_call()]] if self.pair is not None else []
-        groups.append(warm_calls(coriolis=self.law.free_flying or self.law.hierarchical,
-                                 rates=self.spec.integrator == "decomposed"))
-        if self.law.locked.controlled or self.law.shape.controlled:
-            groups.append([pose_potential_warm_call()])
+        groups.append([*warm_calls(rates=self.spec.integrator == "decomposed"), law_warm_call()])
         return groups + [[world_block_warm_call(), warm_call()]]
 
     def run(self) -> FormationResult:
