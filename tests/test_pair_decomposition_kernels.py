@@ -85,6 +85,14 @@ def _old_coriolis(dec, xi1, xi2, V12=None):
     return _coriolis(dec.M1, dec.M2, xi1, xi2, V12, dec.g12)
 
 
+def _old_locked_state(self, M, v, i):
+    """TwoBodyPlant.locked_state by numpy: ξ = M_bb⁻¹ (M v)_b, Λ = M_bb⁻¹ M_bθ, M_θθ − M_bθᵀ Λ."""
+    b = self.body(i)
+    Mbj = M[b.base_v, b.joints_v]
+    Lam = np.linalg.solve(M[b.base_v, b.base_v], Mbj)
+    return np.linalg.solve(M[b.base_v, b.base_v], M[b.base_v] @ v), Lam, M[b.joints_v, b.joints_v] - Mbj.T @ Lam
+
+
 # ---------------------------------------------------------------------- cases
 def _rel(a, b) -> float:
     return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / max(np.linalg.norm(b), 1e-300))
@@ -181,6 +189,33 @@ def test_coriolis_matches_the_numpy_formula(seed):
     assert _rel(dmod.coriolis(d, xi1, xi2), _coriolis(M1, M2, xi1, xi2, V_default, g12)) < 1e-12
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_locked_state_matches_the_numpy_formulas(seed):
+    """ξ_i, Λ_i and the joints' shape inertia of both bodies of a block-diagonal SPD mass matrix (bodies of 6 + 3 and
+    6 + 0 velocities, the second without joints) to 1e-12; connection and locked_twist read the same kernel."""
+    from types import SimpleNamespace
+
+    from sms_cli.formation.plant import TwoBodyPlant
+
+    rng = np.random.default_rng(seed)
+    M = np.zeros((15, 15))
+    for lo, n in ((0, 9), (9, 6)):
+        B = rng.normal(size=(n, n))
+        M[lo:lo + n, lo:lo + n] = B @ B.T + 0.1 * np.eye(n)
+    v = rng.normal(size=15)
+    bodies = [SimpleNamespace(base_v=slice(0, 6), joints_v=slice(6, 9)), SimpleNamespace(base_v=slice(9, 15),
+                                                                                          joints_v=slice(15, 15))]
+    plant = SimpleNamespace(body=lambda i: bodies[i])
+    for i in range(2):
+        got, want = TwoBodyPlant.locked_state(plant, M, v, i), _old_locked_state(plant, M, v, i)
+        assert got[1].shape == want[1].shape and got[2].shape == want[2].shape
+        for g, w in zip(got, want):
+            assert _rel(g, w) < 1e-12 or (w.size == 0 and g.size == 0)
+        plant.locked_state = lambda M_, v_, j: TwoBodyPlant.locked_state(plant, M_, v_, j)
+        lam, mth = TwoBodyPlant.connection(plant, M, i)
+        assert np.array_equal(lam, got[1]) and np.array_equal(mth, got[2])
+
+
 # ---------------------------------------------------------------------- the missions, kernels vs the oracle
 def _numbers(x, path=""):
     if isinstance(x, dict):
@@ -221,14 +256,16 @@ def _run(name: str, extra: str, tmp_path):
     ("caldera_capture_tumbling", ""),
 ])
 def test_shipped_missions_run_the_same_on_the_kernels_as_on_the_numpy_formulas(name, extra, tmp_path, monkeypatch):
-    """Every trace quantity and every metric (timing aside) to 1e-9 of its scale, the oracle's decompose and relative
-    law (test_pair_law_kernel.old_law_call, with this file's C*) patched in where the simulation calls them."""
+    """Every trace quantity and every metric (timing aside) to 1e-9 of its scale, the oracle's decompose, locked
+    state and relative law (test_pair_law_kernel.old_law_call, with this file's C*) patched in where the simulation
+    calls them."""
     from test_pair_law_kernel import old_law_call
 
     from sms_cli.formation import laws, plant
 
     new = _run(name, extra, tmp_path)
     monkeypatch.setattr(plant, "decompose", _old_decompose)
+    monkeypatch.setattr(plant.TwoBodyPlant, "locked_state", _old_locked_state)
     monkeypatch.setattr(laws.RelativeLaw, "__call__", old_law_call)
     old = _run(name, extra, tmp_path)
     (a, ma_all), (p, mp_all) = new, old

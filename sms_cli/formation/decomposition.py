@@ -183,13 +183,14 @@ def coriolis(dec: PairDecomposition, xi1: np.ndarray, xi2: np.ndarray, V12: np.n
 
 
 def warm_calls(rates: bool = False) -> list:
-    """The kernel calls of ``decompose`` (and of ``PairDecomposition.S_inv_rate`` when asked) on throw-away arrays of
-    their argument types (``sms_cli.sim.compiled.warmup``)."""
+    """The kernel calls of ``decompose`` and ``TwoBodyPlant.locked_state`` (and of ``PairDecomposition.S_inv_rate`` when
+    asked) on throw-away arrays of their argument types (``sms_cli.sim.compiled.warmup``)."""
     from sms_cli.sim.compiled.warmup import KernelCall
 
     mod = "sms_cli.sim.compiled.pair_decomposition"
     M, z = I6.copy(), np.zeros((6, 6))
-    calls = [KernelCall(f"{mod}:pair_decompose", (M, M, np.eye(3), np.zeros(3)), cost=1.5)]
+    calls = [KernelCall(f"{mod}:pair_decompose", (M, M, np.eye(3), np.zeros(3)), cost=1.5),
+             KernelCall(f"{mod}:locked_state", (np.eye(7), np.zeros(7), 0, 6, 1), cost=1.0)]
     if rates:
         calls.append(KernelCall(f"{mod}:s_inv_rate", (M, M, M, M, np.zeros(6), z, z), cost=1.0))
     return calls

@@ -129,11 +129,10 @@ class FormationSimulation:
         wheels' part of the connection (arm joints, if any, are the arm law's)."""
         p = self.plant
         M = p.mass_matrix(q)
-        dec, xi1, xi2 = p.decomposition(q, v, M)
+        dec = p.pair_decomposition(q, M)
         out = []
-        for i, xi in enumerate((xi1, xi2)):
-            body = p.bodies[i]
-            Lam, Mth = p.connection(M, i)
+        for i, body in enumerate(p.bodies):
+            xi, Lam, Mth = p.locked_state(M, v, i)
             wsel = body.wheels_v - body.joints_v.start  # the wheels among the body's joints
             out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
                                  Mth[np.ix_(wsel, wsel)]))

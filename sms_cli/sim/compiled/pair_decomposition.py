@@ -159,3 +159,32 @@ def pair_coriolis(M1, M2, Ai, M_tot, A, S_inv, xi1, xi2, V12):
     Z = np.zeros((6, 6))
     rate = s_inv_rate(M2, Ai, M_tot, A, V12, Z, Z)
     return S_inv.T @ (C12 @ S_inv + M12 @ rate)
+
+
+@njit(**JIT)
+def locked_state(M, v, b, j, nj):
+    """(ξ, Λ, M_θ) of one spacecraft from the plant's mass matrix M (nv × nv) and velocity v (nv): its base rows and
+    columns are b..b+6, its joints' j..j+nj. ξ = M_bb⁻¹ (M v)_b (6, its locked twist, base frame), Λ = M_bb⁻¹ M_bθ
+    (6 × nj, the mechanical connection: ξ = V + Λ θ̇) and M_θ = M_θθ − M_θb Λ (nj × nj, the joints' shape inertia)."""
+    Mbb = np.ascontiguousarray(M[b:b + 6, b:b + 6])
+    L = np.zeros((6, 6))
+    cholesky(Mbb, 6, L)
+    h = np.ascontiguousarray(M[b:b + 6, :]) @ v
+    xi = np.empty(6)
+    cholesky_solve(L, h, 6, xi)
+    Lam = np.empty((6, nj))
+    col, x = np.empty(6), np.empty(6)
+    for k in range(nj):
+        for i in range(6):
+            col[i] = M[b + i, j + k]
+        cholesky_solve(L, col, 6, x)
+        for i in range(6):
+            Lam[i, k] = x[i]
+    Mth = np.empty((nj, nj))
+    for r in range(nj):
+        for c in range(nj):
+            s = M[j + r, j + c]
+            for i in range(6):
+                s -= M[b + i, j + r] * Lam[i, c]
+            Mth[r, c] = s
+    return xi, Lam, Mth
