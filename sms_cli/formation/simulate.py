@@ -98,6 +98,8 @@ class FormationSimulation:
         poses = {SERVICER: g_servicer, mission.client.name: g_client}
         self.g0 = (poses[self.names[0]], poses[self.names[1]])
         self.wheel_limits = [np.array([w.max_torque for w in b.system.wheels], float) for b in self.plant.bodies]
+        # each body's wheels among its joints: the columns of its connection, the block of its joints' shape inertia
+        self._wheel_sel = [(w, np.ix_(w, w)) for w in (b.wheels_v - b.joints_v.start for b in self.plant.bodies)]
         self.q, self.v = self._initial_state()
         self.arm_q0 = self.q[self.arm_q].copy()
         self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]), self.names)
@@ -133,9 +135,9 @@ class FormationSimulation:
         out = []
         for i, body in enumerate(p.bodies):
             xi, Lam, Mth = p.locked_state(M, v, i)
-            wsel = body.wheels_v - body.joints_v.start  # the wheels among the body's joints
+            wsel, wblock = self._wheel_sel[i]
             out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
-                                 Mth[np.ix_(wsel, wsel)]))
+                                 Mth[wblock]))
         return dec, out[0], out[1], M
 
     def _thruster_drives(self, locate) -> list:
