@@ -16,6 +16,9 @@ Frames and units (SI; twists linear first ``[v; ω]``, wrenches ``[f; τ]``, Pin
   ``M_E = (M2⁻¹ + Ad⁻¹ M1⁻¹ Ad⁻ᵀ)⁻¹`` (the thesis's L950 form with its operand order corrected).
 - ``C* = S⁻ᵀ C12 S⁻¹ + S⁻ᵀ M12 d/dt(S⁻¹)`` (5.8), ``C12 = diag(C_1, C_2)`` skew-symmetric rigid-body
   Coriolis matrices, ``d/dt Ad⁻¹ = −ad_{V12} Ad⁻¹`` with ``V12`` the body twist of ``g12``.
+
+The two-body formulas are computed by the compiled kernels of ``sms_cli.sim.compiled.pair_decomposition`` (their one
+implementation); this module wraps them in ``PairDecomposition`` (numpy arrays) and keeps the n-body form.
 """
 
 from __future__ import annotations
@@ -26,27 +29,33 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
+from sms_cli.sim.compiled import pair_decomposition as _k
+from sms_cli.sim.compiled import pair_law as _law
+
 I6 = np.eye(6)
 L_, E_ = slice(0, 6), slice(6, 12)
 
 
+def _c(x) -> np.ndarray:
+    """A float64 C-contiguous copy or view (the kernels' one signature)."""
+    return np.ascontiguousarray(x, dtype=float)
+
+
 def ad(xi: np.ndarray) -> np.ndarray:
     """Small adjoint ad_ξ (6×6) of a twist ξ = [v; ω]: [[ω×, v×], [0, ω×]] (Vicariotto 2023 (3.3)), Pinocchio's
-    ``Motion.action``."""
-    return pin.Motion(np.asarray(xi, dtype=float)).action
+    ``Motion.action`` (kernel ``pair_decomposition.ad_matrix``)."""
+    out = np.empty((6, 6))
+    _k.ad_matrix(_c(xi), out)
+    return out
 
 
 def rigid_coriolis(M: np.ndarray, xi: np.ndarray) -> np.ndarray:
-    """Skew-symmetric Euler–Poincaré Coriolis matrix C(ξ) of a rigid body (6×6, body frame).
+    """Skew-symmetric Euler–Poincaré Coriolis matrix C(ξ) of a rigid body (6×6, body frame; kernel
+    ``pair_decomposition.rigid_coriolis``).
 
     C = ½(M ad_ξ − ad_ξᵀ M) − ½ H̄(Mξ), H̄([f; n]) = [[0, [f]×], [[f]×, [n]×]]; then C ξ = −ad_ξᵀ M ξ
     (because H̄(h) ξ = ad_ξᵀ h and ad_ξ ξ = 0) and C + Cᵀ = 0, so M ξ̇ + C ξ = F is (3.6)."""
-    a = ad(xi)
-    h = M @ xi
-    Hbar = np.zeros((6, 6))
-    Hbar[:3, 3:] = Hbar[3:, :3] = pin.skew(h[:3])
-    Hbar[3:, 3:] = pin.skew(h[3:])
-    return 0.5 * (M @ a - a.T @ M) - 0.5 * Hbar
+    return _k.rigid_coriolis(_c(M), _c(xi))
 
 
 def _sym(A: np.ndarray) -> np.ndarray:
@@ -105,13 +114,15 @@ class PairDecomposition:
     def to_locked_shape(self, F1: np.ndarray, F2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(F_L, F_E) = S⁻ᵀ [F1; F2]: F_L = F1 + Ad⁻ᵀ F2 (total wrench, frame 1), F_E = F2 − A*ᵀ F_L (frame 2).
         F1 acts on body 1 in frame 1, F2 on body 2 in frame 2, each at its base-frame origin."""
-        F_L = F1 + self.Ad12_inv.T @ F2
-        return F_L, F2 - self.A_star.T @ F_L
+        F_L, F_E = np.empty(6), np.empty(6)
+        _law.to_locked_shape(self.Ad12_inv, self.A_star, _c(F1), _c(F2), F_L, F_E)
+        return F_L, F_E
 
     def to_bodies(self, F_L: np.ndarray, F_E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(F1, F2) = Sᵀ [F_L; F_E], the inverse of ``to_locked_shape``."""
-        F = self.S.T @ np.concatenate([F_L, F_E])
-        return F[L_], F[E_]
+        F1, F2 = np.empty(6), np.empty(6)
+        _law.to_bodies(self.S, _c(F_L), _c(F_E), F1, F2)
+        return F1, F2
 
     def shape_effort(self, F_E: np.ndarray,
                      actuated: Literal["both", "master", "other"] = "both") -> tuple[np.ndarray, np.ndarray]:
@@ -122,16 +133,12 @@ class PairDecomposition:
           system (total momentum changes by F1).
         - ``"other"``: F1 = 0, so F2 = (1 + M2 M̂1⁻¹) F_E with M̂1 = Adᵀ M1 Ad, and F_L = Ad⁻ᵀ F2.
         The implied locked wrench is ``to_locked_shape(F1, F2)[0]``."""
-        F_E = np.asarray(F_E, dtype=float)
-        z = np.zeros(6)
-        if actuated == "both":
-            return -self.Ad12_inv.T @ F_E, F_E.copy()
-        if actuated == "master":  # A*ᵀ F_L + F_E = 0 (the F2 row of Sᵀ)
-            return np.linalg.solve(self.A_star.T, -F_E), z
-        if actuated == "other":  # F_L = Ad⁻ᵀ F2, so F_E = F2 − A*ᵀ Ad⁻ᵀ F2 = (1 − Ad⁻¹ A*)ᵀ F2
-            P = I6 - self.Ad12_inv @ self.A_star
-            return z, np.linalg.solve(P.T, F_E)
-        raise ValueError(f"actuated must be 'both', 'master' or 'other', not {actuated!r}")
+        modes = {"both": _law.BOTH, "master": _law.MASTER, "other": _law.OTHER}
+        if actuated not in modes:
+            raise ValueError(f"actuated must be 'both', 'master' or 'other', not {actuated!r}")
+        F1, F2 = np.empty(6), np.empty(6)
+        _law.shape_effort(self.Ad12_inv, self.A_star, _c(F_E), modes[actuated], F1, F2)
+        return F1, F2
 
     # ------------------------------------------------------------------ rates
     def S_inv_rate(self, V12: np.ndarray, M1_dot: np.ndarray | None = None,
@@ -140,18 +147,9 @@ class PairDecomposition:
         rates of the locked inertias (zero for rigid bodies; non-zero when an arm moves). Closed form:
         d/dt Ad⁻¹ = −ad_{V12} Ad⁻¹; Ṁ_tot = Ṁ1 + Ad⁻ᵀ(Ṁ2 − ad_{V12}ᵀ M2 − M2 ad_{V12})Ad⁻¹ (L970);
         Ȧ* = M_tot⁻¹(Ad⁻ᵀ(Ṁ2 − ad_{V12}ᵀ M2) − Ṁ_tot A*) (L966)."""
-        Ai, A = self.Ad12_inv, self.A_star
-        a = ad(V12)
-        M1d = np.zeros((6, 6)) if M1_dot is None else M1_dot
-        M2d = np.zeros((6, 6)) if M2_dot is None else M2_dot
-        Ai_dot = -a @ Ai
-        Mtot_dot = M1d + Ai.T @ (M2d - a.T @ self.M2 - self.M2 @ a) @ Ai
-        A_dot = np.linalg.solve(self.M_tot, Ai.T @ (M2d - a.T @ self.M2) - Mtot_dot @ A)
-        out = np.zeros((12, 12))
-        out[L_, E_] = -A_dot
-        out[E_, L_] = Ai_dot
-        out[E_, E_] = -Ai_dot @ A - Ai @ A_dot
-        return out
+        z = np.zeros((6, 6))
+        return _k.s_inv_rate(self.M2, self.Ad12_inv, self.M_tot, self.A_star, _c(V12),
+                             z if M1_dot is None else _c(M1_dot), z if M2_dot is None else _c(M2_dot))
 
     def S_rate(self, V12: np.ndarray, M1_dot: np.ndarray | None = None,
                M2_dot: np.ndarray | None = None) -> np.ndarray:
@@ -159,31 +157,11 @@ class PairDecomposition:
         return -self.S @ self.S_inv_rate(V12, M1_dot, M2_dot) @ self.S
 
 
-def _blockdiag(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    out = np.zeros((12, 12))
-    out[L_, L_] = A
-    out[E_, E_] = B
-    return out
-
-
 def decompose(M1: np.ndarray, M2: np.ndarray, g12: pin.SE3) -> PairDecomposition:
-    """Decomposition at relative pose g12 = g1⁻¹ g2 of two spacecraft with locked inertias M1 (frame 1), M2 (frame 2)."""
-    M1 = np.asarray(M1, dtype=float)
-    M2 = np.asarray(M2, dtype=float)
-    Ai = g12.toActionMatrixInverse()
-    M_tot = _sym(M1 + Ai.T @ M2 @ Ai)
-    A = np.linalg.solve(M_tot, Ai.T @ M2)
-    S = np.zeros((12, 12))
-    S[L_, L_] = I6 - A @ Ai
-    S[L_, E_] = A
-    S[E_, L_] = -Ai
-    S[E_, E_] = I6
-    S_inv = np.zeros((12, 12))
-    S_inv[L_, L_] = I6
-    S_inv[L_, E_] = -A
-    S_inv[E_, L_] = Ai
-    S_inv[E_, E_] = I6 - Ai @ A
-    M_E = _sym(np.linalg.inv(np.linalg.inv(M2) + Ai @ np.linalg.solve(M1, Ai.T)))
+    """Decomposition at relative pose g12 = g1⁻¹ g2 of two spacecraft with locked inertias M1 (frame 1), M2 (frame 2)
+    (kernel ``pair_decomposition.pair_decompose``)."""
+    M1, M2 = _c(M1), _c(M2)
+    Ai, M_tot, A, S, S_inv, M_E = _k.pair_decompose(M1, M2, _c(g12.rotation), _c(g12.translation))
     return PairDecomposition(M1=M1, M2=M2, g12=g12.copy(), Ad12_inv=Ai, M_tot=M_tot, A_star=A, S=S, S_inv=S_inv, M_E=M_E)
 
 
@@ -201,9 +179,21 @@ def coriolis(dec: PairDecomposition, xi1: np.ndarray, xi2: np.ndarray, V12: np.n
     Then M* d/dt[V_L; V_E] + C* [V_L; V_E] = [F_L; F_E] and d/dt M* − 2 C* is skew."""
     if V12 is None:
         V12 = xi2 - dec.Ad12_inv @ xi1
-    C12 = _blockdiag(rigid_coriolis(dec.M1, xi1), rigid_coriolis(dec.M2, xi2))
-    M12 = _blockdiag(dec.M1, dec.M2)
-    return dec.S_inv.T @ (C12 @ dec.S_inv + M12 @ dec.S_inv_rate(V12))
+    return _k.pair_coriolis(dec.M1, dec.M2, dec.Ad12_inv, dec.M_tot, dec.A_star, dec.S_inv, _c(xi1), _c(xi2), _c(V12))
+
+
+def warm_calls(rates: bool = False) -> list:
+    """The kernel calls of ``decompose`` and ``TwoBodyPlant.locked_state`` (and of ``PairDecomposition.S_inv_rate`` when
+    asked) on throw-away arrays of their argument types (``sms_cli.sim.compiled.warmup``)."""
+    from sms_cli.sim.compiled.warmup import KernelCall
+
+    mod = "sms_cli.sim.compiled.pair_decomposition"
+    M, z = I6.copy(), np.zeros((6, 6))
+    calls = [KernelCall(f"{mod}:pair_decompose", (M, M, np.eye(3), np.zeros(3)), cost=1.5),
+             KernelCall(f"{mod}:locked_state", (np.eye(7), np.zeros(7), 0, 6, 1), cost=1.0)]
+    if rates:
+        calls.append(KernelCall(f"{mod}:s_inv_rate", (M, M, M, M, np.zeros(6), z, z), cost=1.0))
+    return calls
 
 
 def coriolis_blocks(C_star: np.ndarray) -> dict[str, np.ndarray]:

@@ -40,6 +40,7 @@ attitude springs to the wheels, whose torques keep the full compensation above; 
 through the wheels once the thrusters have taken the momentum out (a task hierarchy, not a strict Lyapunov law;
 the wheels' authority scales with Λ, so the attitude gains are those of the free-floating law).
 Wheel torques are clipped to each wheel's limit (then Ẇ ≤ 0 is no longer guaranteed; the run counts it).
+The per-tick arithmetic is the compiled ``sms_cli.sim.compiled.pair_law.relative_law`` (its one implementation).
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from sms_cli.formation.decomposition import coriolis, coriolis_blocks
+from sms_cli.sim.compiled import pair_law as _k
 
 
 @dataclass
@@ -63,28 +64,29 @@ class PoseError:
     angle: float
 
 
+def _c(x) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
+
+
 def pose_potential(g: pin.SE3, g_des: pin.SE3, kp_linear: np.ndarray, kp_angular: np.ndarray) -> PoseError:
-    """U, ∇U of the SE(3) potential of the module docstring (γ from the thesis's (4.11), one implementation in
-    ``sms_cli.sim.compiled.momentum_laws.trace_potential``)."""
-    from sms_cli.sim.compiled.momentum_laws import trace_potential
-
-    R_d, R = g_des.rotation, g.rotation
-    r = R_d.T @ (g.translation - g_des.translation)
-    R_e = R_d.T @ R
-    gamma = np.empty(3)
-    phi = trace_potential(np.ascontiguousarray(kp_angular, float), np.ascontiguousarray(R), np.ascontiguousarray(R_d),
-                          gamma)
-    grad = np.concatenate([R_e.T @ (kp_linear * r), gamma])
-    angle = float(np.linalg.norm(pin.log3(R_e)))
-    return PoseError(0.5 * float(r @ (kp_linear * r)) + float(phi), grad, r, angle)
+    """U, ∇U of the SE(3) potential of the module docstring (kernel ``pair_law.pose_error``; γ from the thesis's
+    (4.11), ``sms_cli.sim.compiled.momentum_laws.trace_potential``)."""
+    grad, r = np.empty(6), np.empty(3)
+    U, angle = _k.pose_error(_c(g.rotation), _c(g.translation), _c(g_des.rotation), _c(g_des.translation),
+                             _c(kp_linear), _c(kp_angular), grad, r)
+    return PoseError(float(U), grad, r, float(angle))
 
 
-def pose_potential_warm_call():
-    """``pose_potential``'s kernel call on throw-away arrays of its argument types (``sms_cli.sim.compiled.warmup``)."""
+def law_warm_call():
+    """``RelativeLaw``'s kernel call on throw-away arrays of its argument types (``sms_cli.sim.compiled.warmup``)."""
     from sms_cli.sim.compiled.warmup import KernelCall
 
-    return KernelCall("sms_cli.sim.compiled.momentum_laws:trace_potential", (np.ones(3), np.eye(3), np.eye(3), np.empty(3)),
-                      cost=0.3)
+    M, I3, v, z3 = np.eye(6), np.eye(3), np.zeros(6), np.zeros(3)
+    wheels = (np.zeros((6, 1)), np.zeros(1), np.ones(1), np.eye(1))
+    return KernelCall("sms_cli.sim.compiled.pair_law:relative_law",
+                      (_k.FREE_FLYING, _k.BOTH, True, True, np.ones((2, 12)), 0.0, I3, z3, I3, z3, I3, z3, I3, z3,
+                       M, M, M, M, M, np.eye(12), np.eye(12), M, v, v, v, v, *wheels, *wheels,
+                       np.empty((4, 6)), np.empty(1), np.empty(1), np.empty((2, 8)), np.empty((2, 3))), cost=3.0)
 
 
 @dataclass
@@ -148,40 +150,24 @@ class RelativeLaw:
         self.g1_des = g1_0 * spec.locked.setpoint_offset.se3()
         self.g12_des = g12_0 * spec.shape.setpoint_offset.se3()
 
+        self._mode = _k.HIERARCHICAL if self.hierarchical else _k.FREE_FLYING if self.free_flying else _k.FREE_FLOATING
+        self._actuated = {"both": _k.BOTH, "master": _k.MASTER, "other": _k.OTHER}.get(self.actuation, -1)
+        self._gains = np.array([np.concatenate([g.kp_linear, g.kp_angular, g.kd]) for g in (self.locked, self.shape)])
+        self._setpoints = tuple(_c(x) for g in (self.g1_des, self.g12_des) for x in (g.rotation, g.translation))
+
     def __call__(self, dec, b1: BodyState, b2: BodyState) -> Command:
-        V_L, V_E = dec.locked_shape(b1.xi, b2.xi)
-        zero = np.zeros(6)
-        eL = pose_potential(b1.pose, self.g1_des, self.locked.kp_linear, self.locked.kp_angular) if self.locked.controlled else None
-        g12 = b1.pose.actInv(b2.pose)
-        eE = pose_potential(g12, self.g12_des, self.shape.kp_linear, self.shape.kp_angular) if self.shape.controlled else None
-        gL = eL.grad if eL else zero
-        gE = eE.grad if eE else zero
-        if self.hierarchical:  # the thrusters keep the translation potentials and all damping; the wheels turn
-            gL_f, gE_f = _linear(gL), _linear(gE)
-        else:
-            gL_f, gE_f = gL, gE
-        if self.free_flying or self.hierarchical:
-            C = coriolis_blocks(coriolis(dec, b1.xi, b2.xi, b2.twist - dec.Ad12_inv @ b1.twist))
-            F_L = -gL_f - self.locked.kd * V_L + C["C_LE"] @ V_E if eL else zero.copy()
-            F_E = -gE_f + dec.A_star.T @ gL_f - (self.shape.kd * V_E if eE else 0.0) + (C["C_EL"] @ V_L if eE else 0.0)
-            if eL or self.actuation == "both":
-                F1, F2 = dec.to_bodies(F_L, F_E)
-            else:
-                F1, F2 = dec.shape_effort(F_E, self.actuation)
-                F_L, F_E = dec.to_locked_shape(F1, F2)
-        else:
-            F_L, F_E, F1, F2 = zero, zero, zero, zero
-        Ad_inv_T_gE = dec.Ad12_inv.T @ gE
-        t1 = b1.connection.T @ (F1 + gL - Ad_inv_T_gE) - self.wheel_damping * b1.wheel_rates
-        t2 = b2.connection.T @ (F2 + gE) - self.wheel_damping * b2.wheel_rates
-        c1, c2 = np.clip(t1, -b1.wheel_limits, b1.wheel_limits), np.clip(t2, -b2.wheel_limits, b2.wheel_limits)
-        saturated = bool(np.any(c1 != t1) or np.any(c2 != t2))
-        T_L, T_E = dec.energies(V_L, V_E)
-        T_w = 0.5 * sum(float(b.wheel_rates @ b.wheel_inertia @ b.wheel_rates) for b in (b1, b2))
-        W = T_L + T_E + T_w + (eL.U if eL else 0.0) + (eE.U if eE else 0.0)
-        return Command(F1, F2, c1, c2, F_L, F_E, eL, eE, W, saturated)
-
-
-def _linear(grad: np.ndarray) -> np.ndarray:
-    """The translational part of a potential's gradient [f; 0]."""
-    return np.concatenate([grad[:3], np.zeros(3)])
+        """The command at the decomposition ``dec`` and the bodies' states (kernel ``pair_law.relative_law``)."""
+        if self._actuated < 0 and self._mode != _k.FREE_FLOATING and not self.locked.controlled:
+            raise ValueError(f"actuated must be 'both', 'master' or 'other', not {self.actuation!r}")
+        F = np.empty((4, 6))
+        tau1, tau2 = np.empty(b1.wheel_rates.size), np.empty(b2.wheel_rates.size)
+        err, pos = np.zeros((2, 8)), np.zeros((2, 3))
+        wheels = [(_c(b.connection), _c(b.wheel_rates), _c(b.wheel_limits), _c(b.wheel_inertia)) for b in (b1, b2)]
+        W, saturated = _k.relative_law(
+            self._mode, self._actuated, self.locked.controlled, self.shape.controlled, self._gains, self.wheel_damping,
+            _c(b1.pose.rotation), _c(b1.pose.translation), _c(b2.pose.rotation), _c(b2.pose.translation),
+            *self._setpoints, dec.M1, dec.M2, dec.Ad12_inv, dec.M_tot, dec.A_star, dec.S, dec.S_inv, dec.M_E,
+            _c(b1.xi), _c(b2.xi), _c(b1.twist), _c(b2.twist), *wheels[0], *wheels[1], F, tau1, tau2, err, pos)
+        eL, eE = (PoseError(float(err[i, 0]), err[i, 2:], pos[i], float(err[i, 1])) if g.controlled else None
+                  for i, g in enumerate((self.locked, self.shape)))
+        return Command(F[0], F[1], tau1, tau2, F[2], F[3], eL, eE, float(W), bool(saturated))

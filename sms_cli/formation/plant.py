@@ -241,9 +241,7 @@ class TwoBodyPlant:
 
     def locked_twist(self, q: np.ndarray, v: np.ndarray, i: int | str) -> np.ndarray:
         """ξ_i = M_i⁻¹ h_i (6, base frame): h_i = (M v) on base i's rows, its momentum about its base origin."""
-        s = self.body(i).base_v
-        M = self.mass_matrix(q)
-        return np.linalg.solve(M[s, s], M[s] @ v)
+        return self.locked_state(self.mass_matrix(q), v, i)[0]
 
     def decomposition(self, q: np.ndarray, v: np.ndarray,
                       M: np.ndarray | None = None) -> tuple[PairDecomposition, np.ndarray, np.ndarray]:
@@ -251,7 +249,7 @@ class TwoBodyPlant:
         at q if the caller has it."""
         M = self.mass_matrix(q) if M is None else M
         s1, s2 = self.base_blocks
-        return self.pair_decomposition(q, M), np.linalg.solve(M[s1, s1], M[s1] @ v), np.linalg.solve(M[s2, s2], M[s2] @ v)
+        return self.pair_decomposition(q, M), self.locked_state(M, v, 0)[0], self.locked_state(M, v, 1)[0]
 
     def pair_decomposition(self, q: np.ndarray, M: np.ndarray) -> PairDecomposition:
         """The locked/shape decomposition at q (g12 = g1⁻¹ g2, the locked inertias from the mass matrix M at q)."""
@@ -261,10 +259,16 @@ class TwoBodyPlant:
     def connection(self, M: np.ndarray, i: int | str) -> tuple[np.ndarray, np.ndarray]:
         """(Λ_i = M_bb⁻¹ M_bθ, 6 × joints of body i: the mechanical connection, so that its locked twist is
         ξ_i = V_i + Λ_i θ̇_i; M_θθ − M_θb Λ_i, the joints' shape inertia) from the mass matrix M at q."""
+        return self.locked_state(M, np.zeros(M.shape[0]), i)[1:]
+
+    def locked_state(self, M: np.ndarray, v: np.ndarray, i: int | str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ξ_i = M_bb⁻¹ (M v)_b, its locked twist (6, base frame); Λ_i and the joints' shape inertia as
+        ``connection``) from the mass matrix M and velocity v (kernel ``pair_decomposition.locked_state``)."""
+        from sms_cli.sim.compiled.pair_decomposition import locked_state
+
         b = self.body(i)
-        Mbj = M[b.base_v, b.joints_v]
-        Lam = np.linalg.solve(M[b.base_v, b.base_v], Mbj)
-        return Lam, M[b.joints_v, b.joints_v] - Mbj.T @ Lam
+        return locked_state(np.ascontiguousarray(M, dtype=float), np.ascontiguousarray(v, dtype=float), b.base_v.start,
+                            b.joints_v.start, b.joints_v.stop - b.joints_v.start)
 
     # ------------------------------------------------------------------ dynamics
     def accelerations(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, base_wrenches: Wrenches = (None, None),

@@ -98,6 +98,8 @@ class FormationSimulation:
         poses = {SERVICER: g_servicer, mission.client.name: g_client}
         self.g0 = (poses[self.names[0]], poses[self.names[1]])
         self.wheel_limits = [np.array([w.max_torque for w in b.system.wheels], float) for b in self.plant.bodies]
+        # each body's wheels among its joints: the columns of its connection, the block of its joints' shape inertia
+        self._wheel_sel = [(w, np.ix_(w, w)) for w in (b.wheels_v - b.joints_v.start for b in self.plant.bodies)]
         self.q, self.v = self._initial_state()
         self.arm_q0 = self.q[self.arm_q].copy()
         self.law = RelativeLaw(spec, self.g0[0], self.g0[0].actInv(self.g0[1]), self.names)
@@ -129,14 +131,13 @@ class FormationSimulation:
         wheels' part of the connection (arm joints, if any, are the arm law's)."""
         p = self.plant
         M = p.mass_matrix(q)
-        dec, xi1, xi2 = p.decomposition(q, v, M)
+        dec = p.pair_decomposition(q, M)
         out = []
-        for i, xi in enumerate((xi1, xi2)):
-            body = p.bodies[i]
-            Lam, Mth = p.connection(M, i)
-            wsel = body.wheels_v - body.joints_v.start  # the wheels among the body's joints
+        for i, body in enumerate(p.bodies):
+            xi, Lam, Mth = p.locked_state(M, v, i)
+            wsel, wblock = self._wheel_sel[i]
             out.append(BodyState(p.base_pose(q, i), p.base_twist(v, i), xi, v[body.wheels_v], Lam[:, wsel], self.wheel_limits[i],
-                                 Mth[np.ix_(wsel, wsel)]))
+                                 Mth[wblock]))
         return dec, out[0], out[1], M
 
     def _thruster_drives(self, locate) -> list:
@@ -254,17 +255,18 @@ class FormationSimulation:
     # ---------------------------------------------------------------- loop
     def kernel_groups(self) -> list:
         """The compiled kernels a run makes, as warm-up calls (``sms_cli.sim.compiled.warmup``, ``sms warmup``): the
-        compiled plant step (and the capture monitor's wrench pair), the relative law's pose potential (a controlled subsystem), the recording's /tf of the
-        world link poses and its encoding."""
-        from sms_cli.formation.laws import pose_potential_warm_call
+        compiled plant step (and the capture monitor's wrench pair), the locked/shape decomposition (and the rate of
+        S⁻¹ for the decomposed integrator), the relative law (C*, the pose potentials), the recording's /tf of the world
+        link poses and its encoding."""
+        from sms_cli.formation.decomposition import warm_calls
+        from sms_cli.formation.laws import law_warm_call
         from sms_cli.recording.encoding import warm_call
         from sms_cli.recording.recorder import world_block_warm_call
 
         groups = [[self.pair.warm_call()]] if self.pair is not None else []
         if self.pair is not None and self.capture is not None:
             groups.append([self.pair.capture_warm_call()])  # the capture monitor's samples
-        if self.law.locked.controlled or self.law.shape.controlled:
-            groups.append([pose_potential_warm_call()])
+        groups.append([*warm_calls(rates=self.spec.integrator == "decomposed"), law_warm_call()])
         return groups + [[world_block_warm_call(), warm_call()]]
 
     def run(self) -> FormationResult:
