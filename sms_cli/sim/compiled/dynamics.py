@@ -763,6 +763,19 @@ def cholesky_solve(L, b, k, out):
 
 
 @njit(**JIT)
+def cholesky_solve_columns(A, k, X, L, col):
+    """X[:k] ← A⁻¹ X[:k] in place, column by column, for the symmetric positive definite leading k×k block of A
+    (``cholesky`` into the k×k scratch L, read on A's lower triangle); ``col`` (k,) scratch."""
+    cholesky(A, k, L)
+    for j in range(X.shape[1]):
+        for a in range(k):
+            col[a] = X[a, j]
+        cholesky_solve(L, col, k, col)
+        for a in range(k):
+            X[a, j] = col[a]
+
+
+@njit(**JIT)
 def _solve_spd(A, b, k, L, out):
     """out[:k] = A[:k, :k]⁻¹ b[:k] for a symmetric positive definite A (Cholesky; L is k×k scratch)."""
     cholesky(A, k, L)

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
-from sms_cli.sim.compiled.dynamics import cholesky, cholesky_solve, joint_transforms, mass_matrix
+from sms_cli.sim.compiled.dynamics import cholesky_solve_columns, joint_transforms, mass_matrix
 from sms_cli.sim.compiled.momentum_laws import T_W, momentum_law, momentum_lyapunov
 
 
@@ -53,19 +53,6 @@ def lyapunov_terms(code, q, v, ref, model, par, mem, out):
 
 
 @njit(**JIT)
-def _solve3_columns(S, X, L, col):
-    """X ← S⁻¹ X in place for a symmetric positive definite 3×3 S (``dynamics.cholesky``, read on its lower
-    triangle), column by column through ``col`` (3,); L is 3×3 scratch: the locked reduction's two solves."""
-    cholesky(S, 3, L)
-    for j in range(X.shape[1]):
-        for a in range(3):
-            col[a] = X[a, j]
-        cholesky_solve(L, col, 3, col)
-        for a in range(3):
-            X[a, j] = col[a]
-
-
-@njit(**JIT)
 def locked_reduction_into(M, A, I, Lam_s, L, col):
     """The translation, then the rotation, reduced out of the base rows of a mass matrix M (n × n, base
     coordinates first: rigid nv, or augmented with the modes; ``sms_cli.dynamics.locked._reduce``), into
@@ -76,7 +63,7 @@ def locked_reduction_into(M, A, I, Lam_s, L, col):
     for i in range(3):
         for j in range(n - 3):
             A[i, j] = M[i, 3 + j]
-    _solve3_columns(M, A, L, col)  # M_vv: M's leading 3×3 block
+    cholesky_solve_columns(M, 3, A, L, col)  # M_vv: M's leading 3×3 block
     for i in range(3):
         for j in range(n - 3):
             r = M[3 + i, 3 + j] - (M[3 + i, 0] * A[0, j] + M[3 + i, 1] * A[1, j] + M[3 + i, 2] * A[2, j])
@@ -89,7 +76,7 @@ def locked_reduction_into(M, A, I, Lam_s, L, col):
             x = 0.5 * (I[i, j] + I[j, i])
             I[i, j] = x
             I[j, i] = x
-    _solve3_columns(I, Lam_s, L, col)
+    cholesky_solve_columns(I, 3, Lam_s, L, col)
 
 
 @njit(**JIT)

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from sms_cli.sim.compiled import JIT
-from sms_cli.sim.compiled.dynamics import cholesky, cholesky_solve
+from sms_cli.sim.compiled.dynamics import cholesky_solve, cholesky_solve_columns
 
 
 @njit(**JIT)
@@ -54,16 +54,8 @@ def ad_inverse(R, p, out):
 @njit(**JIT)
 def _spd_solve(A, B):
     """A⁻¹ B for a symmetric positive definite 6×6 A (Cholesky, read on its lower triangle) and a 6×k B."""
-    L = np.zeros((6, 6))
-    cholesky(A, 6, L)
-    out = np.empty((6, B.shape[1]))
-    col, x = np.empty(6), np.empty(6)
-    for j in range(B.shape[1]):
-        for i in range(6):
-            col[i] = B[i, j]
-        cholesky_solve(L, col, 6, x)
-        for i in range(6):
-            out[i, j] = x[i]
+    out = np.ascontiguousarray(B).copy()
+    cholesky_solve_columns(A, 6, out, np.zeros((6, 6)), np.empty(6))
     return out
 
 
@@ -168,18 +160,11 @@ def locked_state(M, v, b, j, nj):
     (6 × nj, the mechanical connection: ξ = V + Λ θ̇) and M_θ = M_θθ − M_θb Λ (nj × nj, the joints' shape inertia)."""
     Mbb = np.ascontiguousarray(M[b:b + 6, b:b + 6])
     L = np.zeros((6, 6))
-    cholesky(Mbb, 6, L)
+    Lam = np.ascontiguousarray(M[b:b + 6, j:j + nj]).copy()
+    cholesky_solve_columns(Mbb, 6, Lam, L, np.empty(6))  # L: M_bb's Cholesky factor, reused for ξ
     h = np.ascontiguousarray(M[b:b + 6, :]) @ v
     xi = np.empty(6)
     cholesky_solve(L, h, 6, xi)
-    Lam = np.empty((6, nj))
-    col, x = np.empty(6), np.empty(6)
-    for k in range(nj):
-        for i in range(6):
-            col[i] = M[b + i, j + k]
-        cholesky_solve(L, col, 6, x)
-        for i in range(6):
-            Lam[i, k] = x[i]
     Mth = np.empty((nj, nj))
     for r in range(nj):
         for c in range(nj):
