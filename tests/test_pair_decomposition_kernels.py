@@ -15,6 +15,7 @@ import pytest
 
 from sms_cli.formation import decomposition as dmod
 from sms_cli.sim.compiled import pair_decomposition as k
+from test_compiled_pair import _numbers
 
 SEEDS = range(10)
 I6 = np.eye(6)
@@ -217,17 +218,6 @@ def test_locked_state_matches_the_numpy_formulas(seed):
 
 
 # ---------------------------------------------------------------------- the missions, kernels vs the oracle
-def _numbers(x, path=""):
-    if isinstance(x, dict):
-        for key, val in x.items():
-            yield from _numbers(val, f"{path}.{key}")
-    elif isinstance(x, (list, tuple)):
-        for i, val in enumerate(x):
-            yield from _numbers(val, f"{path}[{i}]")
-    elif isinstance(x, (int, float)) and not isinstance(x, bool):
-        yield path, float(x)
-
-
 def _run(name: str, extra: str, tmp_path):
     from pathlib import Path
 
