@@ -16,9 +16,13 @@ here reads a clock, so the same calls give the same bytes.
 
 A file that is still being written is a valid MCAP too: every write (a chunk with its indexes, a
 metadata record…) goes over the previous end marker and carries a new one, DataEnd + a Footer
-without summary + magic (``LIVE_END``, 46 bytes), in the same system call. A process killed at any
-point but inside that call leaves a file the ``mcap`` reader and Foxglove open (by a linear scan:
-there is no index); ``finish()`` then writes the summary and index over the last marker, and the
+without summary + magic (``LIVE_END``, 46 bytes). The write goes in three system calls so that the
+file is readable between any two of them and after any one of them is cut short (Linux ends a
+large write() early, page by page, when the process is killed): first the new end marker at its
+final place (the file's end is a marker from then on), then the bytes between the old marker and
+it, and last the 46 bytes over the old marker (a reader scanning from the start stops at the old
+marker until then). A process killed at any point but inside that last 46-byte call leaves a file
+the ``mcap`` reader and Foxglove open (by a linear scan: there is no index); ``finish()`` then writes the summary and index over the last marker, and the
 finished bytes are those of a file written without markers. A failed write (a full disk) is
 undone: the file is cut back to the last whole record and its end marker rewritten, the error is
 kept in ``failed`` and raised again by any later chunk write; ``finish()`` still tries to write
@@ -153,22 +157,36 @@ class ChunkedMcapWriter:
 
     # -- low level -------------------------------------------------------------------------
     def _write(self, data: bytes, end: bytes | None = None) -> None:
-        """Write ``data`` at the end of the records, followed by the end marker, in one call; on
-        an OSError cut the file back to the last whole record (see the module docstring)."""
+        """Write ``data`` at the end of the records, followed by the end marker (over the old one last, in three
+        calls: see the module docstring); on an OSError cut the file back to the last whole record."""
         end = self._end if end is None else end
         try:
-            if self._end:
-                self._f.seek(self._pos)
-            view = memoryview(data + end if end else data)
-            while view:
-                n = self._f.write(view)
-                view = view[len(view) if n is None else n:]
+            whole = memoryview(data + end if end else data)
+            k, w = len(self._end), len(whole)
+            if self._end and w >= 2 * k:  # the old end marker (k bytes at _pos) is overwritten last
+                self._write_at(self._pos + w - k, whole[w - k:])  # the file's new last k bytes first
+                self._write_at(self._pos + k, whole[k:w - k])
+                self._write_at(self._pos, whole[:k])
+                self._f.seek(self._pos + w)
+            else:
+                if self._end:
+                    self._f.seek(self._pos)
+                self._write_all(whole)
         except OSError as exc:
             self.failed = exc
             self._cut()
             raise
         self._crc = zlib.crc32(data, self._crc)
         self._pos += len(data)
+
+    def _write_at(self, offset: int, view: memoryview) -> None:
+        self._f.seek(offset)
+        self._write_all(view)
+
+    def _write_all(self, view: memoryview) -> None:
+        while view:
+            n = self._f.write(view)
+            view = view[len(view) if n is None else n:]
 
     def _cut(self) -> None:
         """Back to the last whole record, with its end marker (best effort: the disk may be full)."""
