@@ -269,6 +269,18 @@ def _simulation(loaded):
     return FormationSimulation(loaded.mission, servicer, client, None, progress=False)
 
 
+def assert_traces_close(a: dict, p: dict) -> None:
+    """Two runs' trace arrays: the same keys and NaNs, every array to 1e-9 of its own largest value."""
+    assert a.keys() == p.keys()
+    for key in p:
+        x, y = np.asarray(a[key], float), np.asarray(p[key], float)
+        assert np.array_equal(np.isnan(x), np.isnan(y)), key
+        if np.isnan(y).all():
+            continue
+        scale = max(np.nanmax(np.abs(y)), 1e-300)
+        assert np.nanmax(np.abs(x - y)) <= 1e-9 * scale, (key, np.nanmax(np.abs(x - y)) / scale)
+
+
 def _numbers(x, path=""):
     """(path, float) of every number in a nested metrics dict."""
     if isinstance(x, dict):
@@ -304,14 +316,7 @@ def test_shipped_missions_run_the_same_on_both_engines(name, extra, interface, t
     assert runs["auto"].engine == "python, compiled plant" and runs["python"].engine == "python"
     assert metrics["auto"]["timing"]["engine"] == "python, compiled plant"
     a, p = runs["auto"].trace, runs["python"].trace
-    assert a.keys() == p.keys()
-    for key in p:
-        x, y = np.asarray(a[key], float), np.asarray(p[key], float)
-        assert np.array_equal(np.isnan(x), np.isnan(y)), key
-        if np.isnan(y).all():
-            continue
-        scale = max(np.nanmax(np.abs(y)), 1e-300)
-        assert np.nanmax(np.abs(x - y)) <= 1e-9 * scale, (key, np.nanmax(np.abs(x - y)) / scale)
+    assert_traces_close(a, p)
     for section, y_all in metrics["python"].items():  # each metric to 1e-9 of its section's largest (a final error
         if section == "timing":  # is a small difference of large numbers: its scale is the initial error's)
             continue

@@ -15,7 +15,7 @@ import pytest
 
 from sms_cli.formation import decomposition as dmod
 from sms_cli.sim.compiled import pair_decomposition as k
-from test_compiled_pair import _numbers
+from test_compiled_pair import _numbers, assert_traces_close
 
 SEEDS = range(10)
 I6 = np.eye(6)
@@ -259,14 +259,7 @@ def test_shipped_missions_run_the_same_on_the_kernels_as_on_the_numpy_formulas(n
     monkeypatch.setattr(laws.RelativeLaw, "__call__", old_law_call)
     old = _run(name, extra, tmp_path)
     (a, ma_all), (p, mp_all) = new, old
-    assert a.keys() == p.keys()
-    for key in p:
-        x, y = np.asarray(a[key], float), np.asarray(p[key], float)
-        assert np.array_equal(np.isnan(x), np.isnan(y)), key
-        if np.isnan(y).all():
-            continue
-        scale = max(np.nanmax(np.abs(y)), 1e-300)
-        assert np.nanmax(np.abs(x - y)) <= 1e-9 * scale, (key, np.nanmax(np.abs(x - y)) / scale)
+    assert_traces_close(a, p)
     for section, y_all in mp_all.items():
         if section == "timing":
             continue
