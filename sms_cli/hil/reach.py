@@ -5,9 +5,8 @@ The robot is a fixed-base URDF (``pinocchio.buildModelFromUrdf``, no free flyer)
 ``flange_to_mockup`` (tool<-mock-up). The tool pose that puts the mock-up at g_HW(t) is therefore, in
 the robot's base frame, ``base⁻¹ g_HW(t) flange_to_mockup⁻¹``.
 
-Solver: damped least squares closed-loop IK (CLIK, a Levenberg–Marquardt step on the body pose error
-``e = log6(T(q)⁻¹ T*)`` with ``∂e/∂q ≈ −Jlog6(T*⁻¹ T(q)) J_LOCAL``), joint limits enforced by projection
-after every step, warm-started from the previous sample's solution (the first sample from ``home``, then
+Solver: ``sms_cli.model.ik.solve_frame_ik`` (damped least squares closed-loop IK, joint limits
+enforced by projection), warm-started from the previous sample's solution (the first sample from ``home``, then
 a few deterministic restarts). A sample is reachable when the converged tool pose is within
 :data:`POSITION_TOL` (1 mm) and :data:`ROTATION_TOL` (0.1 deg) of the target; otherwise the finding says
 whether the solver stopped against a joint limit or simply short of the pose (out of reach).
@@ -23,13 +22,7 @@ import numpy as np
 
 from sms_cli.errors import InputError, Location, Problem
 from sms_cli.hil.poses import compose, inverse
-
-POSITION_TOL = 1e-3  # m
-ROTATION_TOL = np.radians(0.1)  # rad
-CONVERGED = 1e-12  # |e| (m, rad) at which the iteration stops
-MAX_ITER = 100
-MAX_STEP = 0.3  # rad per iteration, per joint
-LIMIT_EPS = 1e-9  # rad: a joint this close to a bound is at its limit
+from sms_cli.model.ik import POSITION_TOL, ROTATION_TOL, IkSolution, solve_frame_ik
 
 
 @dataclass
@@ -111,52 +104,9 @@ def load_robot(role: str, urdf: Path, tool_frame: str, base: np.ndarray, flange_
                          joint_names, urdf)
 
 
-@dataclass
-class IkSolution:
-    """One sample's result: joint angles (rad), residual position (m) and rotation (rad), the joints
-    left against a limit."""
-
-    q: np.ndarray
-    position_error: float
-    rotation_error: float
-    at_limit: list[int]
-
-    @property
-    def reachable(self) -> bool:
-        return self.position_error <= POSITION_TOL and self.rotation_error <= ROTATION_TOL
-
-
 def solve_ik(robot: FacilityRobot, target, q0: np.ndarray) -> IkSolution:
     """Damped least squares CLIK from ``q0`` to the tool pose ``target`` (``pinocchio.SE3``, robot base frame)."""
-    import pinocchio as pin
-
-    model, data, fid = robot.model, robot.data, robot.tool
-    q = np.clip(np.array(q0, dtype=float), robot.lower, robot.upper)
-    best_q, best = q.copy(), np.inf
-    stall = 0
-    for _ in range(MAX_ITER):
-        pin.framesForwardKinematics(model, data, q)
-        dMi = target.actInv(data.oMf[fid])  # T*⁻¹ T(q)
-        f = pin.log6(dMi).vector  # = −log6(T(q)⁻¹ T*): the body pose error, zero at the target
-        err = float(np.linalg.norm(f))
-        if err < best - 1e-15:
-            best, best_q, stall = err, q.copy(), 0
-        else:
-            stall += 1
-        if err < CONVERGED or stall >= 8:
-            break
-        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
-        Je = pin.Jlog6(dMi) @ J  # ∂ log6(T*⁻¹ T(q)) / ∂q
-        lam2 = 1e-10 + 1e-3 * min(err * err, 1.0)
-        dq = -Je.T @ np.linalg.solve(Je @ Je.T + lam2 * np.eye(6), f)
-        dq *= min(1.0, MAX_STEP / max(float(np.abs(dq).max()), 1e-300))
-        q = np.clip(q + dq, robot.lower, robot.upper)
-    pin.framesForwardKinematics(model, data, best_q)
-    T = data.oMf[fid]
-    dp = float(np.linalg.norm(T.translation - target.translation))
-    dR = float(np.linalg.norm(pin.log3(T.rotation.T @ target.rotation)))
-    at = [j for j in range(best_q.size) if best_q[j] - robot.lower[j] < LIMIT_EPS or robot.upper[j] - best_q[j] < LIMIT_EPS]
-    return IkSolution(best_q, dp, dR, at)
+    return solve_frame_ik(robot.model, robot.data, robot.tool, target, q0, robot.lower, robot.upper)
 
 
 def _seeds(robot: FacilityRobot, n: int = 8) -> list[np.ndarray]:
