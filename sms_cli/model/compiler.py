@@ -27,6 +27,17 @@ def _where(loaded: LoadedMission, *path) -> Location:
     return loaded.source.locate(tuple(path))
 
 
+def _assembly_payloads(loaded: LoadedMission) -> list:
+    """The tile bodies of ``simulation.assembly`` (``sms_cli.sim.assembly``), as (PayloadSpec, mission path)."""
+    from sms_cli.sim.assembly import assembly_payloads
+
+    try:
+        return assembly_payloads(loaded.mission)
+    except ValueError as exc:
+        raise InputError(problems=[Problem(str(exc), _where(loaded, "simulation", "assembly"),
+                                           hint="add robot.end_effector: <link name>")]) from None
+
+
 def _unknown_joint(name: str, candidates: list[str], where: Location, what: str) -> Problem:
     close = difflib.get_close_matches(name, candidates, n=1)
     return Problem(f"{what}: no movable joint named '{name}' in the URDF", where,
@@ -156,8 +167,13 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
 
     # ---- payloads
     payloads: dict[str, Payload] = {}
-    for i, p in enumerate(mission.payloads):
-        fid = frame_id(model, p.frame, f"payload '{p.name}' frame", _where(loaded, "payloads", i, "frame"))
+    payload_specs = [(p, ("payloads", i, "frame")) for i, p in enumerate(mission.payloads)] + _assembly_payloads(loaded)
+    for p, path in payload_specs:
+        if p.name in payloads:
+            raise InputError(problems=[Problem(f"payload name '{p.name}' is used twice (the assembly tasks name their "
+                                               "tiles tile_KK, tile_KK@store and tile_KK@PLACE)", _where(loaded, *path),
+                                               hint="rename the mission's payload")])
+        fid = frame_id(model, p.frame, f"payload '{p.name}' frame", _where(loaded, *path))
         fr = model.frames[fid]
         Y = fr.placement.act(payload_inertia(p.mass, np.asarray(p.com), p.inertia))
         payloads[p.name] = Payload(p.name, fid, fr.parentJoint, Y, attached=False)
@@ -289,7 +305,7 @@ def compile_system(loaded: LoadedMission, strict: bool = False) -> SystemModel:
     sm.link_frames = {name: frame_id(model, name, "link") for name in sm.link_parents}
     sm.link_inertias = link_inertias
     sm.kinematics_only = placeholders
-    for p in mission.payloads:
+    for p, _ in payload_specs:
         if p.attached:
             sm.attach_payload(p.name)
     _check_physical(sm, loaded, info, warnings)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -138,7 +139,15 @@ def format_summary(s: dict[str, Any]) -> str:
         lines.append(f"spring    {sp['joint']}: k = {sp['stiffness']:.4g}, c = {sp['damping']:.4g}")
     if s["coupled_frequencies_hz"]:
         lines.append("coupled   free-free elastic frequencies: " + ", ".join(f"{x:.4g}" for x in s["coupled_frequencies_hz"]) + " Hz")
+    generated = re.compile(r"^tile_\d+(@.+)?$")  # the assembly's tile bodies (sms_cli.sim.assembly.tile_name)
+    tiles = [p for p in s["payloads"] if generated.match(p["name"]) and p["name"].endswith("@store")]
     for p in s["payloads"]:
+        if len(tiles) > 3 and generated.match(p["name"]) and p is not tiles[0]:
+            continue  # the assembly's tile bodies (sms_cli.sim.assembly): one line for all of them
+        if len(tiles) > 3 and p is tiles[0]:
+            lines.append(f"payload   {len(tiles)} tiles of {p['mass_kg']:.4g} kg in the store ({tiles[0]['frame']} .. "
+                         f"{tiles[-1]['frame']}), carried on the end effector and placed by the assembly tasks")
+            continue
         lines.append(f"payload   {p['name']}: {p['mass_kg']:.4g} kg at {p['frame']} ({'attached' if p['attached'] else 'detached'} at t=0)")
     if s.get("moves"):
         from types import SimpleNamespace

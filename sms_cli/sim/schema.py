@@ -8,8 +8,8 @@ from typing import Annotated, Literal
 from annotated_types import Gt
 from pydantic import Field, model_validator
 
-from sms_cli.mission.base import Position3, Rotation3, StrictModel, Vector3, vector
-from sms_cli.mission.units import Angle, AngularRate, Force, Frequency, Time, Torque
+from sms_cli.mission.base import InertiaTensor, Position3, Rotation3, StrictModel, Vector3, vector
+from sms_cli.mission.units import Angle, AngularRate, Force, Frequency, Mass, Time, Torque
 from sms_cli.sim.laws.schema import ArmLawSpec, AttitudeLawSpec, ResolvedRateSpec
 
 BaseMode = Literal["free-floating", "rotation-free-floating", "free-flying", "fixed"]
@@ -84,6 +84,64 @@ class PhaseSpec(StrictModel):
             raise ValueError(f"last waypoint at {times[-1]:g} s is after the phase end ({self.duration:g} s)")
         if self.attitude_profile == "smooth" and self.slew_time is None:
             raise ValueError("a smooth attitude profile needs slew_time")
+        return self
+
+
+class TileSpec(StrictModel):
+    """One tile of the assembly (Kraiem 2022 §4.3.1: 55 kg per tile, loads 0–220 kg). Its CoM and inertia
+    are given in the frame of its store slot; the arm grasps it with the end-effector frame on the slot's
+    pose, and releases it with the end-effector frame on the place frame's pose, so the same numbers hold
+    in all three frames."""
+
+    mass: Mass = Field(gt=0)
+    inertia: InertiaTensor = Field(description="about its CoM, in the slot frame's axes (kg m^2)")
+    com: Position3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="CoM in the slot frame (m)")
+
+
+class AssemblyTaskSpec(StrictModel):
+    """One assembly task: pick the tiles of these store slots in order (the load grows by one tile at each
+    grasp), carry them all to ``place`` and release them there."""
+
+    pick: list[int] = Field(min_length=1, description="store slot numbers (1-based) whose tiles the arm picks")
+    place: str = Field(description="frame (URDF link) on which the end-effector frame releases the tiles")
+
+
+class AssemblySpec(StrictModel):
+    """Tile assembly tasks (Kraiem 2022 §4.3.1), expanded into phases run after ``phases``: for each task, a
+    move to each slot (duration 'auto'), a grasp (the tile's mass leaves the store for the end effector), a
+    move to the place frame with the tiles, a release (their mass joins the place frame's body); at the end
+    a move back to the initial joint configuration. Each move's target is the joint configuration that puts
+    the end-effector frame on the slot's (or place's) pose, by inverse kinematics of the arm with the base
+    and wheels fixed (``sms_cli.model.ik``): store and sites are frames of the base, so the target holds
+    whatever the base does. Zero initial momentum and the wheels' momentum-conserving reference
+    (Kraiem 2022 (4.51)) are the law's and the initial state's."""
+
+    tile: TileSpec
+    store: str = Field(description="slot frame names with the slot number as '{index}', e.g. 'tile_slot_{index:02d}'")
+    tiles: int = Field(gt=0, description="tiles in the store at t = 0, in slots 1..tiles (their mass is on the "
+                                         "store's body until picked)")
+    tasks: list[AssemblyTaskSpec] = Field(min_length=1)
+    dwell: Time = Field(10.0, gt=0, description="length of each grasp and release phase (s)")
+    return_home: bool = Field(True, description="end with a move back to the initial joint configuration")
+
+    @model_validator(mode="after")
+    def _check(self):
+        try:
+            names = [self.store.format(index=k) for k in (1, 2)]
+        except (KeyError, IndexError, ValueError) as exc:
+            raise ValueError(f"store '{self.store}' must name the slot number as {{index}} (e.g. "
+                             f"'tile_slot_{{index:02d}}'): {exc}") from None
+        if names[0] == names[1]:
+            raise ValueError(f"store '{self.store}' gives every slot the same frame name: put the slot number in it "
+                             "as {index}")
+        seen: set[int] = set()
+        for task in self.tasks:
+            for k in task.pick:
+                if not 1 <= k <= self.tiles:
+                    raise ValueError(f"slot {k} is not in the store (slots 1..{self.tiles})")
+                if k in seen:
+                    raise ValueError(f"the tile of slot {k} is picked twice")
+                seen.add(k)
         return self
 
 
@@ -218,7 +276,10 @@ class SimulationSpec(StrictModel):
         "auto", description="auto: the compiled loop (numba) when the mission fits it (rigid base, reaction wheels, "
                             "mrp_feedback, no arm, step references), else the Python loop; "
                             "compiled: require it; python: always the Python loop (the reference)")
-    phases: list[PhaseSpec] = Field(min_length=1)
+    phases: list[PhaseSpec] = Field(min_length=1, description="the mission's phases, in order (with 'assembly', the "
+                                                               "phases before the assembly tasks, e.g. a hold)")
+    assembly: AssemblySpec | None = Field(None, description="tile assembly tasks, expanded into phases run after "
+                                                            "'phases' (Kraiem 2022 §4.3.1)")
 
     @model_validator(mode="after")
     def _check(self):

@@ -78,10 +78,12 @@ def prepared_simulation(loaded: LoadedMission, sm=None):
 
 
 def planned_simulation(sm, loaded: LoadedMission):
-    """(spec with ``duration: auto`` phases sized, move plans) — ``sms_cli.sim.authority``."""
+    """(spec with the assembly tasks expanded (``sms_cli.sim.assembly``) and ``duration: auto`` phases sized,
+    move plans) — ``sms_cli.sim.authority``."""
+    from sms_cli.sim.assembly import assembly_phases
     from sms_cli.sim.authority import plan_moves, resolve_durations
 
-    spec = loaded.mission.simulation
+    spec = assembly_phases(sm, loaded.mission.simulation, loaded)
     try:
         plans = plan_moves(sm, spec)
     except ValueError as exc:
