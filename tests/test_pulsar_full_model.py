@@ -50,8 +50,6 @@ FIG_2_12 = [1.01, 1.03, 4.47, 4.60, 6.79, 6.79, 7.61, 7.62, 14.2, 14.2, 14.5, 19
             44.8, 44.8, 45.1, 87.2, 87.2, 87.2]
 #: Relative tolerance on the reproduced poles (justified in missions/pulsar_full.yaml).
 POLE_RTOL = 0.02
-#: Poles the mission documents as not reproduced (rad/s), with this model's value.
-NOT_REPRODUCED = {1.03, 45.1}
 
 
 @pytest.fixture(scope="module")
@@ -120,6 +118,19 @@ def test_participation_factors_fit_each_appendage(sm):
         assert eig.min() > 0, (a.name, eig)
 
 
+#: Kraiem 2022 Table 3.3 (L2276-2283): each solar array's clamped modes, Hz, and L in [T;R] order.
+TABLE_3_3 = [(0.16, [-6.4, 0, 0, 0, -35, 0]), (0.70, [0, -6.7, 0, 35.4, 0, 0]), (1.08, [-0.1, -0.1, 0, 0.3, 0, 3.8]),
+             (1.21, [-3.2, 0, 0, 0, -3, -0.01]), (3.05, [2.3, 0, -0.3, 0, 1.3, 0])]
+
+
+@pytest.mark.parametrize("name", ["left_panel", "right_panel"])
+def test_solar_arrays_carry_table_3_3(sm, name):
+    a = next(x for x in sm.appendages if x.name == name)
+    np.testing.assert_allclose(a.omega, [2 * math.pi * f for f, _ in TABLE_3_3], rtol=1e-12)
+    np.testing.assert_allclose(a.L, [L for _, L in TABLE_3_3], atol=0)
+    np.testing.assert_allclose(a.zeta, 0.005, rtol=1e-12)
+
+
 def _eb_cantilever(m: float, span: float, gap: float, n: int) -> tuple[float, float]:
     """Closed-form participation of a uniform Euler–Bernoulli cantilever (mass m, span, root 'gap' m from the
     junction), mode n (1-based), mass-normalised: L_T = sqrt(m) 2σ/β, L_R = sqrt(m) (gap 2σ/β + span 2/β²)."""
@@ -151,10 +162,14 @@ def test_coupled_poles_reproduce_figure_2_12(sm):
     w = coupled_frequencies(sm)  # rad/s
     assert w.size == 22
     fig = np.array(FIG_2_12)
-    rows, cols = linear_sum_assignment(np.abs(np.log(w[None, :] / fig[:, None])))  # one-to-one, nearest
-    rel = {int(i): w[j] / fig[i] - 1 for i, j in zip(rows, cols)}
-    missed = {fig[i] for i, r in rel.items() if abs(r) > POLE_RTOL}
-    assert missed == NOT_REPRODUCED, {fig[i]: round(r, 4) for i, r in rel.items()}
+    # One-to-one matching that reproduces as many listed poles as possible within POLE_RTOL (then the nearest).
+    log_ratio = np.abs(np.log(w[None, :] / fig[:, None]))
+    rows, cols = linear_sum_assignment((log_ratio > math.log1p(POLE_RTOL)) + 1e-3 * log_ratio)
+    rel = {float(fig[i]): w[j] / fig[i] - 1 for i, j in zip(rows, cols)}
+    missed = sorted(float(fig[i]) for i, j in zip(rows, cols) if abs(w[j] / fig[i] - 1) > POLE_RTOL)
+    # 17 of the 19 reproduced; not reproduced: the 1.03 array pole and one of the {44.8, 44.8, 45.1} beam group
+    # (this model has 45.59 and 51.27 there; which of 44.8/45.1 is left over is a tie of the matching).
+    assert len(missed) == 2 and missed[0] == 1.03 and missed[1] in (44.8, 45.1), rel
     # The free base only lowers each mode's effective mass: every coupled pole is at or above the lowest clamped one.
     assert w.min() >= 0.16 * 2 * math.pi * (1 - 1e-9)
 
