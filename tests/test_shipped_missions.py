@@ -24,4 +24,6 @@ def test_mission_compiles(path):
     assert s["dof"]["base"] == 6
     assert s["dof"]["arm"] >= 0
     clamped = sorted(f for a in s["appendages"] for f in a["clamped_frequencies_hz"])
-    assert all(c > k for c, k in zip(s["coupled_frequencies_hz"], clamped))
+    # Interlacing: freeing the base only lowers each mode's effective mass, so coupled >= clamped, with equality
+    # (to round-off) for combinations of identical appendages that do not move the hub (pulsar_full's beams).
+    assert all(c >= k * (1 - 1e-12) for c, k in zip(s["coupled_frequencies_hz"], clamped))
