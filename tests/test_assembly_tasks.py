@@ -33,6 +33,7 @@ simulation:
   phases: [{{name: hold, duration: 5 s}}]
   assembly:
     tile: {{mass: {mass} kg, inertia: {inertia}, com: {com}}}
+    grasp: {grasp}
     store: {store}
     tiles: 3
     tasks:
@@ -41,8 +42,14 @@ simulation:
 TASKS = "      - {pick: [1], place: assembly_site}\n      - {pick: [2, 3], place: assembly_site}"
 
 
-def _frames(sm) -> str:
-    """URDF text of massless fixed links on the base at the end-effector poses of the chosen configurations."""
+GRASPS = {"on the frame": ("{position: [0, 0, 0], rpy: [0, 0, 0]}", pin.SE3.Identity()),
+          "flipped, 10 cm off": ("{position: [0.02, -0.03, 0.1], rpy: [170 deg, 20 deg, 30 deg]}",
+                                 pin.SE3(pin.rpy.rpyToMatrix(*np.radians([170, 20, 30])), np.array([0.02, -0.03, 0.1])))}
+
+
+def _frames(sm, grasp) -> str:
+    """URDF text of massless fixed links on the base whose grasp pose is the end-effector pose of each of the
+    chosen configurations (frame = end-effector pose · grasp⁻¹)."""
     out = []
     names = [f"tile_slot_{k}" for k in (1, 2, 3)] + ["assembly_site"]
     for name, c in zip(names, SLOT_CONFIGS + [SITE_CONFIG]):
@@ -50,7 +57,7 @@ def _frames(sm) -> str:
         for a, v in zip(sm.arm, c):
             q[a.q_index] = v
         pin.framesForwardKinematics(sm.model, sm.data, q)
-        T = sm.data.oMf[sm.base_frame_id].actInv(sm.data.oMf[sm.ee_frame_id])
+        T = sm.data.oMf[sm.base_frame_id].actInv(sm.data.oMf[sm.ee_frame_id]) * grasp.inverse()
         xyz = " ".join(f"{x:.17g}" for x in T.translation)
         rpy = " ".join(f"{x:.17g}" for x in pin.rpy.matrixToRpy(T.rotation))
         out.append(f'  <joint name="{name}_mount" type="fixed"><parent link="Spacecraft"/><child link="{name}"/>'
@@ -58,21 +65,23 @@ def _frames(sm) -> str:
     return "".join(out)
 
 
-@pytest.fixture(scope="module")
-def folder(tmp_path_factory):
+@pytest.fixture(scope="module", params=list(GRASPS), ids=list(GRASPS))
+def folder(request, tmp_path_factory):
+    """A folder with the test robot whose slots are reachable with this grasp; ``folder.grasp``: its YAML."""
     from conftest import compile_path
 
     sm = compile_path(MISSIONS / "pulsar_simple.yaml")
     d = tmp_path_factory.mktemp("assembly")
     text = (ROOT / "robots" / "pulsar_simple.urdf").read_text()
-    (d / "robot.urdf").write_text(text.replace("</robot>", _frames(sm) + "</robot>"))
+    (d / "robot.urdf").write_text(text.replace("</robot>", _frames(sm, GRASPS[request.param][1]) + "</robot>"))
+    (d / "grasp.txt").write_text(GRASPS[request.param][0])
     return d
 
 
 def _mission(folder, name="m.yaml", store="tile_slot_{index}", tasks=TASKS, **tile):
     t = {**TILE, **tile}
     path = folder / name
-    path.write_text(MISSION.format(store=store, tasks=tasks, **t))
+    path.write_text(MISSION.format(store=store, tasks=tasks, grasp=(folder / "grasp.txt").read_text(), **t))
     return path
 
 
@@ -98,8 +107,10 @@ def test_each_move_puts_the_end_effector_on_its_frame(folder):
         for a in sm.arm:
             q[a.q_index] = moves[phase].waypoints[-1].joints[a.name]
         pin.framesForwardKinematics(sm.model, sm.data, q)
-        # relative pose of the end-effector frame to the target frame, both on the free-flyer model
-        err = pin.log6(sm.data.oMf[sm.model.getFrameId(frame)].actInv(sm.data.oMf[sm.ee_frame_id])).vector
+        # pose of the end-effector frame in the target frame, both on the free-flyer model, against the grasp
+        grasp = GRASPS["on the frame" if "rpy: [0, 0, 0]" in (folder / "grasp.txt").read_text() else "flipped, 10 cm off"][1]
+        rel = sm.data.oMf[sm.model.getFrameId(frame)].actInv(sm.data.oMf[sm.ee_frame_id])
+        err = pin.log6(grasp.actInv(rel)).vector
         assert np.linalg.norm(err) < 1e-9, (phase, err)
     home = moves["return_home"].waypoints[-1].joints
     assert np.allclose([home[a.name] for a in sm.arm], sm.q0[[a.q_index for a in sm.arm]], atol=0)

@@ -4,7 +4,8 @@ Payloads (``assembly_payloads``, read by the compiler): for every tile k of the 
 same mass, CoM and inertia (``TileSpec``, given in the slot frame's axes):
 
 * ``tile_KK@store`` on slot frame k, attached at t = 0 (the stored tile rides on the store's body);
-* ``tile_KK`` on the end-effector frame, attached at its grasp;
+* ``tile_KK`` on the end-effector frame, attached at its grasp (CoM and inertia moved to that frame by the
+  grasp pose, ``simulation.assembly.grasp``: the end-effector frame's pose in the slot frame);
 * ``tile_KK@PLACE`` on the place frame of its task, attached at its release.
 
 The grasp detaches the first and attaches the second while the end-effector frame sits on the slot's
@@ -15,8 +16,8 @@ lumped at the end-effector frame.
 Phases (``assembly_phases``, after the compiler): per task, ``tN_reach_KK`` (duration 'auto') and
 ``tN_grasp_KK`` per picked tile, ``tN_carry`` (duration 'auto', to the place frame) and ``tN_release``;
 then ``return_home`` (duration 'auto', to the initial arm configuration) when asked. Move targets are
-joint configurations found by inverse kinematics of the end-effector frame on the slot's (place's) pose
-in the base frame, with the base, the wheels and any spring joint fixed at their initial values: slots
+joint configurations found by inverse kinematics of the end-effector frame on the grasp pose in the slot's
+(place's) frame, with the base, the wheels and any spring joint fixed at their initial values: slots
 and sites are frames of the base, so the target is right whatever the base's motion.
 """
 
@@ -50,16 +51,36 @@ def assembly_payloads(mission) -> list[tuple[object, tuple]]:
         raise ValueError("assembly tasks carry tiles on the end effector: name it (robot.end_effector)")
     t = spec.tile
     body = {"mass": t.mass, "inertia": t.inertia, "com": t.com}
+    carried = {"mass": t.mass, **_in_end_effector(t, spec.grasp)}
     out = []
     for k in range(1, spec.tiles + 1):
         out.append((PayloadSpec(name=f"{tile_name(spec, k)}@store", frame=spec.store.format(index=k), attached=True,
                                 **body), where + ("store",)))
-        out.append((PayloadSpec(name=tile_name(spec, k), frame=ee, **body), ("robot", "end_effector")))
+        out.append((PayloadSpec(name=tile_name(spec, k), frame=ee, **carried), ("robot", "end_effector")))
     for i, task in enumerate(spec.tasks):
         for k in task.pick:
             out.append((PayloadSpec(name=f"{tile_name(spec, k)}@{task.place}", frame=task.place, **body),
                         where + ("tasks", i, "place")))
     return out
+
+
+def grasp_pose(grasp):
+    """``pinocchio.SE3`` of the end-effector frame in the slot (place) frame (``GraspSpec``)."""
+    import pinocchio as pin
+
+    return pin.SE3(pin.rpy.rpyToMatrix(*map(float, grasp.rpy)), np.asarray(grasp.position, dtype=float))
+
+
+def _in_end_effector(tile, grasp) -> dict:
+    """The tile's CoM (m) and inertia about it (six numbers, ``sms_cli.inertia`` order) in the end-effector
+    frame: c_e = Rᵀ(c_s − p), I_e = Rᵀ I_s R with (R, p) the grasp pose in the slot frame."""
+    from sms_cli.inertia import inertia_tensor
+
+    g = grasp_pose(grasp)
+    R, p = g.rotation, g.translation
+    I = R.T @ inertia_tensor(*(list(tile.inertia) + [0.0, 0.0, 0.0])[:6]) @ R
+    return {"com": (R.T @ (np.asarray(tile.com, dtype=float) - p)).tolist(),
+            "inertia": [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]}
 
 
 class ArmIk:
@@ -132,12 +153,13 @@ def assembly_phases(sm, spec, loaded=None):
         raise InputError(problems=[Problem(str(exc), _locate(loaded, ("simulation", "assembly")), "simulation.assembly",
                                            "assembly tasks need an arm of revolute and prismatic joints")]) from None
     names = [a.name for a in sm.arm]
+    grasp = grasp_pose(asm.grasp)
     q_arm = np.asarray(sm.q0)[[a.q_index for a in sm.arm]].copy()
     home = q_arm.copy()
 
     def move(name: str, kind: str, frame: str, path: tuple) -> PhaseSpec:
         nonlocal q_arm
-        sol, q_new = ik.solve(ik.frame_pose(frame), q_arm)
+        sol, q_new = ik.solve(ik.frame_pose(frame) * grasp, q_arm)
         if not sol.reachable:
             raise InputError(problems=[Problem(
                 f"the end effector cannot reach frame '{frame}': the closest arm configuration leaves it "

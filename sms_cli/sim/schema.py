@@ -89,13 +89,23 @@ class PhaseSpec(StrictModel):
 
 class TileSpec(StrictModel):
     """One tile of the assembly (Kraiem 2022 §4.3.1: 55 kg per tile, loads 0–220 kg). Its CoM and inertia
-    are given in the frame of its store slot; the arm grasps it with the end-effector frame on the slot's
-    pose, and releases it with the end-effector frame on the place frame's pose, so the same numbers hold
-    in all three frames."""
+    are given in the frame of its store slot; the arm grasps it with the end-effector frame at the grasp
+    pose in the slot frame and releases it at the same pose in the place frame, so the same numbers hold in
+    the place frame, and their transform by the grasp pose in the end-effector frame."""
 
     mass: Mass = Field(gt=0)
     inertia: InertiaTensor = Field(description="about its CoM, in the slot frame's axes (kg m^2)")
     com: Position3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="CoM in the slot frame (m)")
+
+
+class GraspSpec(StrictModel):
+    """Pose of the end-effector frame in a slot's (or place's) frame when it holds the tile there."""
+
+    position: Position3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="m, in the slot frame")
+    rpy: Rotation3 = Field(default_factory=lambda: [0.0, 0.0, 0.0],
+                           description="roll-pitch-yaw of the end-effector axes in the slot frame (URDF convention: "
+                                       "R = Rz(yaw) Ry(pitch) Rx(roll)), e.g. [180 deg, 0, 0]: tool z against the "
+                                       "slot's z")
 
 
 class AssemblyTaskSpec(StrictModel):
@@ -121,6 +131,8 @@ class AssemblySpec(StrictModel):
     tiles: int = Field(gt=0, description="tiles in the store at t = 0, in slots 1..tiles (their mass is on the "
                                          "store's body until picked)")
     tasks: list[AssemblyTaskSpec] = Field(min_length=1)
+    grasp: GraspSpec = Field(default_factory=GraspSpec, description="end-effector pose in the slot (place) frame at "
+                                                                   "grasp (release); default: on the frame")
     dwell: Time = Field(10.0, gt=0, description="length of each grasp and release phase (s)")
     return_home: bool = Field(True, description="end with a move back to the initial joint configuration")
 
