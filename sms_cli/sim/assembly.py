@@ -121,20 +121,23 @@ class ArmIk:
         return self.data.oMf[fid].copy()
 
     def solve(self, target, q_arm0: np.ndarray):
-        """``IkSolution`` (best of the warm start and deterministic restarts) and its arm joints in ``sm.arm`` order."""
+        """``IkSolution`` (the warm start, else the best of deterministic restarts: reached, then with no joint
+        on a limit) and its arm joints in ``sm.arm`` order."""
         from sms_cli.model.ik import solve_frame_ik
 
         rng = np.random.default_rng(2022)
         lo = np.where(np.isfinite(self.lower), self.lower, -np.pi)
         hi = np.where(np.isfinite(self.upper), self.upper, np.pi)
+        def rank(sol):  # reached, then off the joint limits (a target on a stop drives the joint into it)
+            return sol.reachable, not sol.at_limit, -(sol.position_error + sol.rotation_error)
+
         best = None
         for attempt in range(_RESTARTS + 1):
             q0 = self._from_arm(q_arm0) if attempt == 0 else lo + (hi - lo) * rng.random(lo.size)
             sol = solve_frame_ik(self.model, self.data, self.ee, target, q0, self.lower, self.upper, max_iter=300)
-            if best is None or (sol.reachable, -(sol.position_error + sol.rotation_error)) > \
-                    (best.reachable, -(best.position_error + best.rotation_error)):
+            if best is None or rank(sol) > rank(best):
                 best = sol
-            if sol.reachable:
+            if sol.reachable and not sol.at_limit:
                 break
         return best, best.q[self.index]
 
