@@ -61,9 +61,20 @@ def _needs_gains(path: Path) -> bool:
     return sim.ndi is not None and sim.ndi.kp is None or sim.attitude == "from_gains"
 
 
+# Missions that run the Python loop (with the compiled plant) under engine: auto, and why. The test asserts
+# that this is still the reason, so that the entry must go once the compiled loop covers the case.
+PYTHON_LOOP = {"pulsar_full": "the model has flexible modes"}  # MRP + computed torque with 22 modes (#19)
+
+
 @pytest.mark.parametrize("mission", MISSIONS)
 def test_the_compiled_loop_equals_the_python_loop_on_every_shipped_mission(tmp_path, mission):
     path = ROOT / "missions" / f"{mission}.yaml"
+    if mission in PYTHON_LOOP:
+        from sms_cli.sim.compiled.runner import unsupported_reason
+
+        sm, spec, _ = prepared_simulation(load_mission(path))
+        assert unsupported_reason(sm, spec, spec.attitude) == PYTHON_LOOP[mission]
+        return
     if _needs_gains(path):
         from sms_cli.synthesis.stage import run_synthesis
 
