@@ -48,8 +48,21 @@ TILE_MASS = 55.0  # 220 kg = 4 tiles (L2966)
 #: Figure 2.12 (L1544-1564): the 19 listed coupled poles, rad/s.
 FIG_2_12 = [1.01, 1.03, 4.47, 4.60, 6.79, 6.79, 7.61, 7.62, 14.2, 14.2, 14.5, 19.2, 19.2,
             44.8, 44.8, 45.1, 87.2, 87.2, 87.2]
-#: Relative tolerance on the reproduced poles (justified in missions/pulsar_full.yaml).
-POLE_RTOL = 0.02
+#: The clamped frequency (rad/s) of each listed pole's mode family: the arrays' Table 3.3 frequencies, the
+#: beams' clamped frequencies (set to the lowest pole of each beam group, robots/pulsar_full.urdf).
+CLAMPED = [0.16, 0.16, 0.70, 0.70, 1.08, 1.08, 1.21, 1.21]
+CLAMPED = [2 * math.pi * f for f in CLAMPED] + [14.2, 14.2, 14.2, 2 * math.pi * 3.05, 2 * math.pi * 3.05,
+                                                44.8, 44.8, 44.8, 87.2, 87.2, 87.2]
+
+
+def pole_tolerance(fig: float, clamped: float) -> float:
+    """rad/s: half a unit of the figure's last printed digit (3 significant digits), or the pole's own coupling
+    shift |fig − clamped| if larger. A coupled member moves from the clamped frequency by an amount set by
+    the hub, which Figure 2.12's model (base + payload + beams + arrays, the thesis's layout) does not share
+    with this one: it is reproduced when it moves by less than that shift again (as ``missions/pulsar_full.yaml``
+    states)."""
+    half_digit = 0.5 * 10 ** (math.floor(math.log10(fig)) - 2)
+    return max(half_digit, abs(fig - clamped))
 
 
 @pytest.fixture(scope="module")
@@ -162,14 +175,16 @@ def test_coupled_poles_reproduce_figure_2_12(sm):
     w = coupled_frequencies(sm)  # rad/s
     assert w.size == 22
     fig = np.array(FIG_2_12)
-    # One-to-one matching that reproduces as many listed poles as possible within POLE_RTOL (then the nearest).
-    log_ratio = np.abs(np.log(w[None, :] / fig[:, None]))
-    rows, cols = linear_sum_assignment((log_ratio > math.log1p(POLE_RTOL)) + 1e-3 * log_ratio)
-    rel = {float(fig[i]): w[j] / fig[i] - 1 for i, j in zip(rows, cols)}
-    missed = sorted(float(fig[i]) for i, j in zip(rows, cols) if abs(w[j] / fig[i] - 1) > POLE_RTOL)
-    # 18 of the 19 reproduced (with the 36 tiles in the store); not reproduced: one of the {44.8, 44.8, 45.1} beam
-    # group (this model has 45.37 and 48.24 there; which of 44.8/45.1 is left over is a tie of the matching).
-    assert len(missed) == 1 and missed[0] in (44.8, 45.1), rel
+    tol = np.array([pole_tolerance(f, c) for f, c in zip(FIG_2_12, CLAMPED)])
+    # One-to-one matching that reproduces as many listed poles as possible within their tolerance (then the nearest).
+    err = np.abs(w[None, :] - fig[:, None])
+    rows, cols = linear_sum_assignment((err > tol[:, None]) + 1e-3 * err / fig[:, None])
+    found = {float(fig[i]): float(w[j]) for i, j in zip(rows, cols)}
+    missed = sorted(float(fig[i]) for i, j in zip(rows, cols) if err[i, j] > tol[i])
+    # 15 of the 19 reproduced (with the 36 tiles in the store). Not reproduced: four beam members that couple more
+    # here than in the thesis (this model: 14.28 for 14.2, 48.24 for one of the {44.8, 44.8, 45.1} group, 87.35
+    # and 87.39 for two 87.2): Euler-Bernoulli beams of Table 4.1's masses and spans.
+    assert len(missed) == 4 and missed[0] == 14.2 and missed[1] in (44.8, 45.1) and missed[2:] == [87.2, 87.2], found
     # The free base only lowers each mode's effective mass: every coupled pole is at or above the lowest clamped one.
     assert w.min() >= 0.16 * 2 * math.pi * (1 - 1e-9)
 
