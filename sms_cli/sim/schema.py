@@ -244,6 +244,12 @@ class NdiSpec(StrictModel):
         True, description="wheel accelerations that keep the base from rotating under the commanded arm acceleration "
                           "(the derivative of the (3.66) wheel-rate reference); false: the wheels act on the base-rate "
                           "error alone")
+    disturbance_observer: bool = Field(
+        False, description="Kraiem 2022 ch. 4's nonlinear disturbance observer (4.12): the law subtracts its estimate "
+                           "τ̂_d of the actuators' disturbance torques (4.21); gain L_d = Q_d M◇⁻¹ with Q_d from "
+                           "gains.yaml (sms synthesize with lmi.variant: ndi_observer_ndo) or given here")
+    Q_d: list[list[float]] | None = Field(None, description="NDO gain matrix (N m s per rad, actuators × actuators: "
+                                                            "wheels, then arm); default: gains.yaml's observer.Q_d")
 
 
 # a frequency > 0 inside a union (the bound on the number itself, as Field(gt=0) puts it on a plain quantity)

@@ -13,6 +13,9 @@ Units SI (rad, m, sqrt(kg) m for η).
   of one control period; the caller evaluates the bias and internal forces r in between.
 - ``ndi_observe``: the exact ZOH propagation of the observer over the period (discretisation refreshed
   when the arm moved by more than ``refresh`` or the model changed).
+- ``ndo_estimate``, ``ndo_refresh``: the disturbance observer of Kraiem 2022 ch. 4 (4.12), its estimate τ̂_d
+  at a tick and its discretisation over the period that follows; the law subtracts τ̂_d from the torques
+  (4.21) by handing ``ndi_command`` r with r_a − τ̂_d.
 - ``augmented_mass``, ``augmented_bias``: M (nx×nx) and r = bias − internal forces for base-mounted
   appendages (the compiled loop's counterparts of ``SystemModel.mass_matrix``, ``bias_forces`` −
   ``internal_forces``).
@@ -31,7 +34,7 @@ from sms_cli.sim.compiled.control import error_quaternion
 from sms_cli.sim.compiled.dynamics import bias_forces, cholesky, cholesky_solve, mass_matrix, quat_to_matrix
 
 # flags of the law's state (int64 array)
-STARTED, DISC_VALID, PINV_VALID, SATURATED, N_FLAGS = 0, 1, 2, 3, 4
+STARTED, DISC_VALID, PINV_VALID, SATURATED, NDO_PENDING, N_FLAGS = 0, 1, 2, 3, 4, 5
 
 
 @njit(**JIT)
@@ -265,15 +268,10 @@ def least_norm(G, b):
 
 
 @njit(**JIT)
-def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, quat, omega, v, q_arm,
-                ref_quat, ref_omega, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau):
-    """Actuator torques τ_a (wheels then arm; N m or N) of one control period into ``tau``, from M and
-    r = bias − internal forces at the estimated state: τ = M◇ v + n (3.33)–(3.35) with the commands v
-    (arm: q̈_d + kp ε + kv ε̇; wheels: the attitude hold q̇_rd = q̇_r − M_ωr⁺ M_ωω (ω_des − ω0),
-    ω_des = R ω_ref − k_att θ, v_r = kv (q̇_rd − q̇_r) plus the feedforward that keeps ω̇0 = 0 when
-    ``wheel_ff``). Wheel torques beyond ``wheel_limit`` are clipped first and the arm torques computed
-    for the wheel accelerations the clipped torques produce. Sets flags[SATURATED] and
-    ``wheel_rate_ref`` (q̇_rd, rad/s); ``wheel_pinv`` (n_r×3) is made on the first call (M_ωr is constant)."""
+def actuator_dynamics(M, r, lin, ang, act, flex):
+    """The actuators' reduced dynamics M◇ q̈_a + n = τ_a (Kraiem 2022 (3.33)–(3.35)) from M (nx×nx) and
+    r = bias − internal forces (nx): M◇ = M_aa − M_au M_uu⁻¹ M_ua, n = r_a − M_au M_uu⁻¹ r_u (u: base and
+    flexible coordinates); also sol = M_uu⁻¹ [M_ua, r_u] ((nu)×(na + 1))."""
     n_f = flex.shape[0]
     na = act.shape[0]
     nu = lin.shape[0] + ang.shape[0] + n_f
@@ -291,6 +289,55 @@ def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_l
     n_term = -(Mau @ sol[:, na])
     for i in range(na):
         n_term[i] += r[act[i]]
+    return M_dia, n_term, sol
+
+
+@njit(**JIT)
+def ndo_estimate(qdot_a, flags, ndo_Phi, ndo_g, ndo_H, tau_hat):
+    """The disturbance observer's estimate τ̂_d (N m or N, per actuator) at this control tick, in place:
+    τ̂⁺ = Φ τ̂ + g + H q̇_a with the actuator rates q̇_a measured now and Φ, g, H left by the previous
+    tick's ``ndo_refresh`` (nothing before the first refresh: τ̂ stays at its initial value)."""
+    if flags[NDO_PENDING] == 0:
+        return
+    t_new = ndo_Phi @ tau_hat + ndo_g + ndo_H @ qdot_a
+    tau_hat[:] = t_new
+    flags[NDO_PENDING] = 0
+
+
+@njit(**JIT)
+def ndo_refresh(M, r, lin, ang, act, flex, qdot_a, tau_applied, Q_d, T, flags, ndo_Phi, ndo_g, ndo_H):
+    """Kraiem 2022's nonlinear disturbance observer (4.12), τ̂̇_d = L_d (M◇ q̈_a + n − τ_a − τ̂_d) with
+    L_d = Q_d M◇⁻¹ (4.33), over the control period T (s) that starts now, discretised with the measured
+    rate change instead of the p-form (4.13)–(4.16) (which exists to avoid q̈ in continuous time): with
+    M◇, n and τ_a held over the period and Φ = e^(−L_d T),
+
+        τ̂⁺ = Φ τ̂ + (I − Φ) (n − τ_a + M◇ (q̇_a⁺ − q̇_a) / T),
+
+    exact for a constant disturbance under a constant q̈ (the fixed point is τ_d, the error decays as Φᵏ).
+    Stores Φ, g = (I − Φ)(n − τ_a − M◇ q̇_a / T) and H = (I − Φ) M◇ / T for the next tick's ``ndo_estimate``."""
+    M_dia, n_term, _ = actuator_dynamics(M, r, lin, ang, act, flex)
+    na = act.shape[0]
+    A = np.ascontiguousarray(-(Q_d @ np.linalg.inv(M_dia)) * T)
+    Phi = _expm(A)
+    I_Phi = np.eye(na) - Phi
+    ndo_Phi[:, :] = Phi
+    ndo_H[:, :] = I_Phi @ M_dia / T
+    ndo_g[:] = I_Phi @ (n_term - tau_applied) - ndo_H @ qdot_a
+    flags[NDO_PENDING] = 1
+
+
+@njit(**JIT)
+def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, quat, omega, v, q_arm,
+                ref_quat, ref_omega, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau):
+    """Actuator torques τ_a (wheels then arm; N m or N) of one control period into ``tau``, from M and
+    r = bias − internal forces at the estimated state: τ = M◇ v + n (3.33)–(3.35) with the commands v
+    (arm: q̈_d + kp ε + kv ε̇; wheels: the attitude hold q̇_rd = q̇_r − M_ωr⁺ M_ωω (ω_des − ω0),
+    ω_des = R ω_ref − k_att θ, v_r = kv (q̇_rd − q̇_r) plus the feedforward that keeps ω̇0 = 0 when
+    ``wheel_ff``). Wheel torques beyond ``wheel_limit`` are clipped first and the arm torques computed
+    for the wheel accelerations the clipped torques produce. Sets flags[SATURATED] and
+    ``wheel_rate_ref`` (q̇_rd, rad/s); ``wheel_pinv`` (n_r×3) is made on the first call (M_ωr is constant)."""
+    na = act.shape[0]
+    M_dia, n_term, sol = actuator_dynamics(M, r, lin, ang, act, flex)
     n_m = na - n_r
     v_cmd = np.zeros(na)
     for i in range(n_m):

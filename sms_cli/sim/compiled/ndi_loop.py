@@ -25,7 +25,7 @@ from sms_cli.sim.compiled.loop import (ARM_BLOCKS, ARM_ERR, ARM_RATE, ARM_RATE_R
                                        ARM_TORQUE, NON_FINITE, RATE_LIMIT, RUNNING, SETTLED, STOP_FAILED,
                                        effective_wheel_inertia)
 from sms_cli.sim.compiled.ndi_law import (SATURATED, augmented_bias, augmented_mass, ndi_command, ndi_observe,
-                                          ndi_velocity)
+                                          ndi_velocity, ndo_estimate, ndo_refresh)
 from sms_cli.sim.compiled.sensors import measure_state
 from sms_cli.sim.compiled.stops import stop_step
 
@@ -109,6 +109,8 @@ def run_ticks_ndi(
     # NDI law (ndi_law; NdiObserver.kernel_args) on this phase or not, and its state (in/out)
     ndi_on, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, K_f, C_f, L, period, refresh, flags,
     wheel_pinv, wheel_rate_ref, disc_q, Phi, Gamma, B_tau, x_hat,
+    # its disturbance observer (ndo_estimate, ndo_refresh): on, Q_d, state in/out
+    ndo_on, Q_d, ndo_Phi, ndo_g, ndo_H, tau_hat,
     # the phase's attitude reference (step: ω_r = 0) and settling
     q_ref, settle_tol, settle_time,
     # arm: coordinates, effort limits, the phase's joint reference (arm_laws.joint_reference) and its start
@@ -131,8 +133,8 @@ def run_ticks_ndi(
     """Advance up to ``n_ticks`` control periods from time t0; returns (ticks, steps, status) as
     ``loop.run_ticks`` (status also MODAL_LIMIT). Per tick: the NDI torques (wheels then arm, when
     ``ndi_on``) from M and r at the estimated state (``augmented_mass``, ``ndi_velocity``,
-    ``augmented_bias``, ``ndi_command``), clipped to the wheel and joint limits, the observer propagated
-    with them (``ndi_observe``); the trace (``tr_arm`` blocks as ``run_ticks``, ``tr_wrr`` the law's desired
+    ``augmented_bias``, ``ndi_command``; with ``ndo_on`` the disturbance estimate ``ndo_estimate`` subtracted),
+    clipped to the wheel and joint limits, the observer propagated with them (``ndi_observe``, ``ndo_refresh``); the trace (``tr_arm`` blocks as ``run_ticks``, ``tr_wrr`` the law's desired
     wheel rates, ``tr_modal`` max |η|, momenta and energy with the modal terms); then the plant sub-steps.
     Sensors (``sensed``): the law sees the measured state of each tick (``sensors.measure_state`` with the tick's
     row of ``sens_noise``: ω, the attitude, the arm's angles and rates), the trace and the plant the true one."""
@@ -161,6 +163,8 @@ def run_ticks_ndi(
     me = np.empty(10)
     M = np.empty((nx, nx))
     r = np.empty(nx)
+    r_cmd = np.empty(nx)
+    qdot_a = np.empty(na)
     x = np.empty(nx)
     zero3 = np.zeros(3)
     ref_q, ref_qd, ref_qdd = np.empty(n_arm), np.empty(n_arm), np.empty(n_arm)
@@ -200,8 +204,15 @@ def run_ticks_ndi(
             ndi_velocity(M, lin, ang, act, flex, omega, vs, x_hat, flags, x)
             augmented_bias(parent, kind, axis, inertia, idx_v, R_rel, p_rel, modal_B, neg_omega2, neg_2zo, x[:nv],
                            x_hat[n_f - ne:n_f], x[nv:], r)
-            ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, qs[3:7], omega, vs, q_arm, q_ref,
-                        zero3, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau_a)
+            r_cmd[:] = r
+            if ndo_on:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21)): n from r with r_a − τ̂_d
+                for i in range(na):
+                    qdot_a[i] = vs[act[i]]
+                ndo_estimate(qdot_a, flags, ndo_Phi, ndo_g, ndo_H, tau_hat)
+                for i in range(na):
+                    r_cmd[act[i]] -= tau_hat[i]
+            ndi_command(M, r_cmd, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, qs[3:7], omega, vs, q_arm,
+                        q_ref, zero3, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau_a)
             sat = flags[SATURATED] != 0
             for i in range(nw):  # actuators.WheelArray.clip_torque
                 lim = max_torque[i]
@@ -217,6 +228,8 @@ def run_ticks_ndi(
                 tau_a[nw + i] = tau_m[i]
             ndi_observe(M, q_arm, omega, tau_a, lin, ang, act, flex, K_f, C_f, L, period, refresh, flags, disc_q, Phi, Gamma,
                         B_tau, x_hat)
+            if ndo_on:
+                ndo_refresh(M, r, lin, ang, act, flex, qdot_a, tau_a, Q_d, period, flags, ndo_Phi, ndo_g, ndo_H)
         # trace (state at the tick)
         if n_arm:
             for i in range(n_arm):

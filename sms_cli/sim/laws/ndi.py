@@ -46,7 +46,7 @@ class NdiObserver:
     class holds the law's state and evaluates M and the bias forces with the SystemModel (Pinocchio)."""
 
     def __init__(self, sm: SystemModel, kp: np.ndarray, kv: np.ndarray, L: np.ndarray, attitude_gain: float,
-                 period: float, wheel_feedforward: bool = True):
+                 period: float, wheel_feedforward: bool = True, Q_d: np.ndarray | None = None):
         from sms_cli.sim.compiled.ndi_law import N_FLAGS
 
         self.sm = sm
@@ -79,6 +79,13 @@ class NdiObserver:
         self.wheel_rate_ref = np.zeros(self.n_r)  # desired wheel rates of the last control period (rad/s)
         self._x = np.zeros(sm.nx)
         self._tau = np.zeros(n_q)
+        # disturbance observer (Kraiem 2022 ch. 4): on when Q_d is given; τ̂_d and its discretisation
+        self.ndo = Q_d is not None
+        self.Q_d = np.zeros((n_q, n_q)) if Q_d is None else np.ascontiguousarray(Q_d, dtype=float)
+        if self.Q_d.shape != (n_q, n_q):
+            raise ValueError(f"the disturbance observer's Q_d must be {n_q}×{n_q} (wheels, then arm), got {self.Q_d.shape}")
+        self.ndo_Phi, self.ndo_H = np.zeros((n_q, n_q)), np.zeros((n_q, n_q))
+        self.ndo_g, self.tau_hat = np.zeros(n_q), np.zeros(n_q)
 
     @property
     def saturated(self) -> bool:
@@ -95,21 +102,23 @@ class NdiObserver:
 
     def reset(self) -> None:
         self.x_hat[:] = 0.0
+        self.tau_hat[:] = 0.0
         self.flags[:] = 0
 
     def kernel_args(self) -> tuple:
         """The law's constants and state as ``ndi_law``'s kernels take them (the compiled loop's arguments):
-        index sets, gains, K_f, C_f, L, period, refresh, then the state arrays (updated in place)."""
+        index sets, gains, K_f, C_f, L, period, refresh, the state arrays (updated in place), then the disturbance
+        observer: on, Q_d and its state."""
         ix = self.ix
         return (ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.n_r, self.kp, self.kv, self.k_att,
                 self.wheel_feedforward, self.wheel_limit, _f64(self.K_f), _f64(self.C_f), self.L, self.T,
                 float(self.refresh), self.flags, self.wheel_pinv, self.wheel_rate_ref, self.disc_q, self.Phi, self.Gamma,
-                self.B_tau, self.x_hat)
+                self.B_tau, self.x_hat, self.ndo, self.Q_d, self.ndo_Phi, self.ndo_g, self.ndo_H, self.tau_hat)
 
     # ------------------------------------------------------------------ control
     def torques(self, s: Sensed, att_ref: AttitudeRef, arm_ref: ArmRef) -> np.ndarray:
         """Actuator torques (wheels, then arm) for this control period; call ``observe`` afterwards."""
-        from sms_cli.sim.compiled.ndi_law import ndi_command, ndi_velocity
+        from sms_cli.sim.compiled.ndi_law import ndi_command, ndi_velocity, ndo_estimate
 
         sm, ix = self.sm, self.ix
         M = _f64(sm.mass_matrix(s.q))
@@ -120,22 +129,30 @@ class NdiObserver:
         v_hat, etadot_hat = x[: sm.nv], x[sm.nv:]
         eta_hat = self.x_hat[self.n_f - sm.n_modes:self.n_f] if sm.n_modes else np.zeros(0)
         # passive spring joints are flexible coordinates: their positions are estimated too
-        r = sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat)
-        ndi_command(M, _f64(r), ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.n_r, self.kp, self.kv,
+        r = _f64(sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat))
+        r_cmd = r
+        if self.ndo:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21)): n from r with r_a − τ̂_d
+            ndo_estimate(_f64(v[ix.actuators]), self.flags, self.ndo_Phi, self.ndo_g, self.ndo_H, self.tau_hat)
+            r_cmd = r.copy()
+            r_cmd[ix.actuators] -= self.tau_hat
+        ndi_command(M, r_cmd, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.n_r, self.kp, self.kv,
                     self.k_att, self.wheel_feedforward, self.wheel_limit, _f64(s.quat), omega, v, _f64(s.q_arm),
                     _f64(att_ref.quat), _f64(att_ref.omega), _f64(arm_ref.q), _f64(arm_ref.qd), _f64(arm_ref.qdd),
                     self.flags, self.wheel_pinv, self.wheel_rate_ref, self._tau)
-        self._M, self._y, self._q_act = M, omega, _f64(s.q[self._q_act_idx])
+        self._M, self._y, self._q_act, self._r, self._qdot_a = M, omega, _f64(s.q[self._q_act_idx]), r, _f64(v[ix.actuators])
         return self._tau.copy()
 
     def observe(self, tau_applied: np.ndarray) -> None:
         """Propagate the observer over the period with the torques actually applied (after saturation)."""
-        from sms_cli.sim.compiled.ndi_law import ndi_observe
+        from sms_cli.sim.compiled.ndi_law import ndi_observe, ndo_refresh
 
         ix = self.ix
         ndi_observe(self._M, self._q_act, self._y, _f64(tau_applied), ix.base_linear, ix.base_angular, ix.actuators,
                     ix.flexible, _f64(self.K_f), _f64(self.C_f), self.L, self.T, float(self.refresh), self.flags,
                     self.disc_q, self.Phi, self.Gamma, self.B_tau, self.x_hat)
+        if self.ndo:
+            ndo_refresh(self._M, self._r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self._qdot_a,
+                        _f64(tau_applied), self.Q_d, self.T, self.flags, self.ndo_Phi, self.ndo_g, self.ndo_H)
 
     def warm_calls(self) -> list:
         """The kernel calls of ``torques`` and ``observe`` on throw-away data (``sms_cli.sim.compiled.warmup``)."""
@@ -148,7 +165,7 @@ def ndi_warm_calls(law: NdiObserver) -> list:
 
     sm = law.sm
     (lin, ang, act, flex, n_r, kp, kv, k_att, ff, wl, K_f, C_f, L, T, refresh, flags, pinv, wrr, dq, Phi, Gam, Bt,
-     xh) = law.kernel_args()
+     xh, _, Q_d, nPhi, ng, nH, th) = law.kernel_args()
     M = np.eye(sm.nx)
     z = lambda n: np.zeros(n)  # noqa: E731
     n_q, n_e = act.size, xh.size
@@ -160,7 +177,11 @@ def ndi_warm_calls(law: NdiObserver) -> list:
                                           z(law.n_m), flags.copy(), pinv.copy(), wrr.copy(), z(n_q)), cost=1.5),
         KernelCall(f"{mod}:ndi_observe", (M, z(law.n_m), z(3), z(n_q), lin, ang, act, flex, K_f, C_f, L, T, refresh, flags.copy(),
                                           dq.copy(), Phi.copy(), Gam.copy(), Bt.copy(), xh.copy()), cost=2.0),
-    ]
+    ] + ([
+        KernelCall(f"{mod}:ndo_estimate", (z(n_q), flags.copy(), nPhi.copy(), ng.copy(), nH.copy(), th.copy()), cost=0.2),
+        KernelCall(f"{mod}:ndo_refresh", (M, z(sm.nx), lin, ang, act, flex, z(n_q), z(n_q), Q_d, T, flags.copy(), nPhi.copy(),
+                                          ng.copy(), nH.copy()), cost=1.0),
+    ] if law.ndo else [])
 
 
 def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_dir=None,
@@ -173,15 +194,20 @@ def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_di
     from sms_cli.errors import InputError, Problem
 
     kp, kv, L = spec.kp, spec.kv, spec.L
-    if kp is None or kv is None or L is None:
+    Q_d = spec.Q_d if spec.disturbance_observer else None
+    if spec.Q_d is not None and not spec.disturbance_observer:
+        raise InputError(problems=[Problem("simulation.ndi gives Q_d but the disturbance observer is off",
+                                           field="simulation.ndi.Q_d", hint="add disturbance_observer: true")])
+    if kp is None or kv is None or L is None or (spec.disturbance_observer and Q_d is None):
         from sms_cli.synthesis.gains_io import read_gains
 
         candidates = [Path(mission_dir) / spec.gains] if spec.gains and mission_dir else []
         candidates += [Path(results_dir) / (spec.gains or "gains.yaml")] if results_dir else []
         path = next((c for c in candidates if c.exists()), None)
         if path is None and any_gains:
+            n_q = len(sm.wheels) + len(sm.arm)
             return NdiObserver(sm, 1.0, 1.0, np.zeros((2 * sm.reduced.K_f.shape[0] + 3, 3)), spec.attitude_gain, period,
-                               spec.wheel_feedforward)
+                               spec.wheel_feedforward, np.eye(n_q) if spec.disturbance_observer else None)
         if path is None:
             raise InputError(problems=[Problem(
                 "simulation.ndi needs gains: none given and no gains.yaml found "
@@ -200,8 +226,15 @@ def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_di
         kp = kp if kp is not None else g.controller.kp
         kv = kv if kv is not None else g.controller.kv
         L = L if L is not None else g.observer.L
+        if spec.disturbance_observer and Q_d is None:
+            if g.observer.Q_d is None:
+                raise InputError(problems=[Problem(
+                    f"{path}: the disturbance observer needs Q_d, which these gains do not have", field="simulation.ndi",
+                    hint="synthesize with synthesis.lmi.variant: ndi_observer_ndo, or give simulation.ndi.Q_d")])
+            Q_d = g.observer.Q_d
     try:
         return NdiObserver(sm, np.asarray(kp, float), np.asarray(kv, float), np.asarray(L, float),
-                           spec.attitude_gain, period, spec.wheel_feedforward)
+                           spec.attitude_gain, period, spec.wheel_feedforward,
+                           None if Q_d is None else np.asarray(Q_d, float))
     except ValueError as exc:
         raise InputError(problems=[Problem(str(exc), field="simulation.ndi")]) from None
