@@ -2,9 +2,8 @@
 flexible modes on the base and payloads attached or released between phases: same results as the Python
 engine (``sms_cli.sim.engine.Simulation.run_python``), trace, metrics and recording (tests/test_compiled_ndi.py).
 
-The runner keeps what ``CompiledSimulation`` does (slices, progress, events, interruption) and adds the
-phases' payload changes: the SystemModel's payloads are attached or released as the Python loop does, and
-the tree arrays (loop and recording) re-read the body inertias; the law's observer is rebuilt.
+The runner keeps what ``CompiledSimulation`` does (slices, progress, events, interruption, the phases' payload
+changes, the recording with the modes) and rebuilds the law's observer when a payload changes the model.
 """
 
 from __future__ import annotations
