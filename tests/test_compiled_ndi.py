@@ -139,7 +139,7 @@ def test_augmented_terms_equal_the_system_model(pulsar):
     """M and r = bias − internal forces of the loop (base-mounted modes) against SystemModel.mass_matrix,
     bias_forces and internal_forces (Pinocchio); the modal momenta and energy against momenta and energy."""
     from sms_cli.sim.compiled.dynamics import joint_transforms
-    from sms_cli.sim.compiled.ndi_loop import modal_sample_momenta
+    from sms_cli.sim.compiled.modal import modal_sample_momenta
     from sms_cli.sim.compiled.tree import flatten
 
     sm = pulsar
@@ -312,7 +312,7 @@ def test_the_warm_up_lists_every_kernel_of_the_ndi_loop(tmp_path, pulsar):
     sim = Simulation(sm, loaded.mission.simulation, None, progress=False)
     sim.warm_up()
     kernels = {"ndi_law": ["ndi_velocity", "ndi_command", "ndi_observe", "reduced_at_rest", "observer_discretisation"],
-               "ndi_loop": ["run_ticks_ndi", "modal_sample_momenta"], "stops": ["stop_step"], "dynamics": ["rkmk4_step"],
+               "ndi_loop": ["run_ticks_ndi"], "modal": ["modal_sample_momenta"], "stops": ["stop_step"], "dynamics": ["rkmk4_step"],
                "loop": ["effective_wheel_inertia"]}
     count = lambda: {f: len(getattr(importlib.import_module(f"sms_cli.sim.compiled.{m}"), f).signatures)  # noqa: E731
                      for m, fs in kernels.items() for f in fs}

@@ -38,8 +38,17 @@ MISSIONS = _single_spacecraft_simulations()
 def _shortened(path: Path, engine: str) -> str:
     """The mission text of ``path`` with ``engine`` and each phase (its ``auto`` durations and waypoint times as
     ``sms simulate`` plans them) cut at PHASE_CAP_S, the waypoints after the cut dropped so that the motion before
-    it is the mission's own; a phase whose first waypoint lies after the cut ends at that waypoint instead."""
-    _, sim, _ = prepared_simulation(load_mission(path))
+    it is the mission's own; a phase whose first waypoint lies after the cut ends at that waypoint instead.
+
+    The planned phases include those of the assembly tasks (``simulation.assembly``): the child writes
+    ``assembly: null``, which ``extends`` merges as a replacement (``mission.load._merge``: a non-mapping child
+    value replaces the parent's), so the tasks do not expand a second time; the tile payloads they define
+    (``sim.assembly.assembly_payloads``) are written as the child's ``payloads`` after the base's own, the order in
+    which the compiler lists them."""
+    from sms_cli.sim.assembly import assembly_payloads
+
+    loaded = load_mission(path)
+    _, sim, _ = prepared_simulation(loaded)
     phases = []
     for phase in sim.phases:
         d = phase.model_dump(mode="json", exclude_unset=True)
@@ -52,8 +61,12 @@ def _shortened(path: Path, engine: str) -> str:
             if "waypoints" in d:
                 d["waypoints"] = kept
         phases.append(d)
-    return yaml.safe_dump({"extends": str(path), "name": f"{path.stem}_short",
-                           "simulation": {"engine": engine, "phases": phases}}, sort_keys=False)
+    child = {"extends": str(path), "name": f"{path.stem}_short", "simulation": {"engine": engine, "phases": phases}}
+    if loaded.mission.simulation.assembly is not None:
+        child["simulation"]["assembly"] = None
+        child["payloads"] = [p.model_dump(mode="json") for p in loaded.mission.payloads] + \
+            [p.model_dump(mode="json") for p, _ in assembly_payloads(loaded.mission)]
+    return yaml.safe_dump(child, sort_keys=False)
 
 
 def _needs_gains(path: Path) -> bool:
@@ -63,7 +76,7 @@ def _needs_gains(path: Path) -> bool:
 
 # Missions that run the Python loop (with the compiled plant) under engine: auto, and why. The test asserts
 # that this is still the reason, so that the entry must go once the compiled loop covers the case.
-PYTHON_LOOP = {"pulsar_full": "the model has flexible modes"}  # MRP + computed torque with 22 modes (#19)
+PYTHON_LOOP: dict[str, str] = {}
 
 
 @pytest.mark.parametrize("mission", MISSIONS)

@@ -124,6 +124,8 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
     mom_args, thr_args = NO_MOMENTUM_LAW, NO_THRUSTERS  # the run's own types (None: those blocks pruned)
     sensors = loop.sensors if loop is not None else Sensors(sm, SensorsSpec())  # noiseless without a loop
     sens_args = (sensors.noisy, sensors.par.copy(), np.zeros((0, sensors.width)))
+    ne = sm.n_modes
+    modal = loop.modal if loop is not None else (np.zeros((0, 6)), np.zeros((6, 0)), np.zeros((6, 6)), none_f, none_f)
     if loop is not None:
         arm_args, stop_args = loop._arm_args(), loop._stop_args()
         mom_args = loop._momentum_args()
@@ -149,13 +151,14 @@ def loop_calls(sm, tree: tuple, loop=None) -> list[KernelCall]:
         KernelCall(f"{mod}.dynamics:rkmk4_step", (*plant_tree, *rigid, q, v, none_f, none_f, np.zeros(sm.nv), 0.01, q.copy(),
                                                   v.copy(), none_f.copy(), none_f.copy(), ws, none_i), cost=4.5),
         KernelCall(f"{mod}.loop:run_ticks", (
-            *tree, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
+            *tree, *modal, wheel_v, np.zeros((nw, 3)), np.zeros((nw, nw)), np.zeros(nw), 0.0, 0.0, np.ones(nw), np.ones(nw), 0.0, 0.0,
             False, False, np.inf, *NO_LAW, np.zeros(PROF_N), -1.0, 0.0, *mom_args, *arm_args, *ref, *stop_args,
             False, False, np.zeros(RR_N), np.ones(n_arm), 0, np.eye(3), np.zeros(3), np.zeros(n_arm), np.zeros((0, 10)),
-            *thr_args, *sens_args, 0.0, 1.0, 1, 0, 0, 1e9,
-            q.copy(), v.copy(), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2, np.empty(1, dtype=np.bool_),
-            np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)), np.empty((0, 3)),
-            np.empty(0), np.zeros((0, 6)), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)), e2, np.empty((0, 0)),
+            *thr_args, *sens_args, 0.0, 1.0, 1, 0, 0, 1e9, 1e9,
+            q.copy(), v.copy(), np.zeros(ne), np.zeros(ne), np.zeros(4), np.ones(nw), np.array([np.nan]), e1, e1, e2, e2,
+            np.empty(1, dtype=np.bool_), np.empty((1, 3)), np.empty((1, 6)), e1, np.empty((1, 7 * n_arm + 6)), np.empty((1, X_N)),
+            np.empty((0, 3)), np.empty(0), np.zeros((0, 6)), e1.copy(), e1, np.empty((1, sm.nq)), np.empty((1, sm.nv)),
+            np.empty((1, ne)), np.empty((1, ne)), e2, np.empty((0, 0)),
             np.empty((0, 1)), np.empty((0, 9)), np.empty((2 * ns, 10)), np.zeros(1, dtype=np.int64)), cost=6.0),
     ]
 

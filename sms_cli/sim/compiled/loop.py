@@ -31,7 +31,9 @@ from sms_cli.sim.compiled.dynamics import (aba_call, bias_forces, frame_poses, i
                                            world_placements)
 from sms_cli.sim.compiled.disturbances import disturbance_wrench
 from sms_cli.sim.compiled.held_base import held_base_reaction
+from sms_cli.sim.compiled.modal import modal_momentum_energy
 from sms_cli.sim.compiled.momentum_control import locked_model, locked_velocity, lyapunov_terms, momentum_control
+from sms_cli.sim.compiled.ndi_law import augmented_bias, augmented_mass
 from sms_cli.sim.compiled.profiles import attitude_reference, reference_rates
 from sms_cli.sim.compiled.resolved_rate import frame_origin, track_end_effector
 from sms_cli.sim.compiled.sensors import measure_state
@@ -39,6 +41,7 @@ from sms_cli.sim.compiled.stops import stop_step
 from sms_cli.sim.compiled.thrusters import USED, thruster_step
 
 RUNNING, SETTLED, NON_FINITE, RATE_LIMIT, STOP_FAILED, ALLOCATE = 0, 1, 2, 3, 4, 5
+MODAL_LIMIT = 6  # a modal amplitude exceeded the divergence limit (both loops)
 # column blocks of the per-tick arm trace ``tr_arm`` (each n_arm wide, then the base motion's 6)
 ARM_ERR, ARM_REF, ARM_RATE_REF, ARM_RATE, ARM_TORQUE, ARM_STOP_TIME, ARM_STOP_PEN, ARM_BLOCKS = 0, 1, 2, 3, 4, 5, 6, 7
 # columns of the per-tick ``tr_x``: the attitude reference (xyzw), the end-effector error (m; NaN: not tracking),
@@ -84,6 +87,8 @@ def system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, e
 def run_ticks(
     # tree
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
+    # base-mounted modes (none: n_η = 0): B (n_η×6), Bᵀ, BᵀB, −Ω², −2ζΩ (CompiledPlant, ndi_loop.run_ticks_ndi)
+    modal_B, modal_Bt, modal_BtB, neg_omega2, neg_2zo,
     # wheels
     wheel_v, A_pinv, null, spin, null_gain, target_speed, max_torque, max_speed, coulomb, viscous,
     # attitude law (attitude_laws.attitude_law: code, parameters, body) and phase
@@ -106,13 +111,13 @@ def run_ticks(
     # sensors (sensors.measure_state): noisy or biased, parameters, the normals of each tick (n_ticks × K)
     sensed, sens_par, sens_noise,
     # timing and limits
-    t0, dt, n_sub, tick0, n_ticks, max_rate,
+    t0, dt, n_sub, tick0, n_ticks, max_rate, max_modal,
     # state, in/out
-    q, v, law_mem, eff_inertia, settled_since,
-    # outputs per control tick
-    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_x, tr_locked, tr_lyap, tr_wrench,
+    q, v, eta, etadot, law_mem, eff_inertia, settled_since,
+    # outputs per control tick (tr_modal: max |η|)
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_bt, tr_mom, tr_energy, tr_arm, tr_x, tr_locked, tr_lyap, tr_wrench, tr_modal,
     # outputs per plant step (state after the step and the wheel torque applied during it; the momentum law's W terms)
-    st_t, st_q, st_v, st_tw, st_lyap,
+    st_t, st_q, st_v, st_eta, st_etadot, st_tw, st_lyap,
     # per plant step with real thrusters: [thrust averaged over the step (n), propellant used] and [p, k, μ] at the mass
     st_thr, st_mom,
     # joint-stop events (stops.py rows) and their count
@@ -121,8 +126,15 @@ def run_ticks(
     """Advance up to ``n_ticks`` control periods from time t0; returns (ticks, steps, status).
 
     status: RUNNING (all ticks done), SETTLED (the phase's until_settled condition ended it),
-    NON_FINITE or RATE_LIMIT (divergence: the state at the last completed tick is in q, v),
+    NON_FINITE, RATE_LIMIT or MODAL_LIMIT (divergence: the state at the last completed tick is in q, v),
     STOP_FAILED (a joint-stop complementarity problem did not terminate).
+
+    Flexible modes (n_η > 0, appendages on the base): the plant steps (η, η̇) with the rigid tree (the
+    ``CompiledPlant`` step, ``stop_step`` with the joint stops); the laws see the rigid measured state, the arm
+    law's model (M*, h*) is reduced from the augmented mass matrix and bias at the measured (q, v) and the true
+    (η, η̇) (``augmented_mass``, ``augmented_bias``; ``plant_models.ArmDynamics``: free modes are sensed as they
+    are); the trace's momenta and energy have the modal terms (``modal.modal_momentum_energy``), ``tr_modal``
+    max |η| at the tick.
 
     The arm (n_arm joints): the law's torque on the tick's joint reference, clipped to the effort
     limits (a clipped joint counts as saturated), with M* and h* from ``mass_matrix`` and
@@ -173,10 +185,14 @@ def run_ticks(
     tau = np.zeros(nv)
     q_new = np.empty(nq)
     v_new = np.empty(nv)
-    work = workspace(n, nq, nv, 0)
-    # a rigid tree: no modes, no springs (the general step takes them)
-    no_Bt, no_BtB, no_e = np.zeros((6, 0)), np.zeros((6, 6)), np.zeros(0)
+    ne = eta.shape[0]
+    nx = nv + ne
+    work = workspace(n, nq, nv, ne)
+    # the base-mounted modes as the plant step takes them; no springs (the general step takes them)
+    modal = (modal_Bt, modal_BtB, neg_omega2, neg_2zo)
+    no_e = np.zeros(0)
     no_i = np.zeros(0, dtype=np.int64)
+    eta_new, etadot_new = np.empty(ne), np.empty(ne)
     R_rel = np.empty((n, 3, 3))
     p_rel = np.empty((n, 3))
     me = np.empty(10)
@@ -186,6 +202,7 @@ def run_ticks(
     q_arm, qd_arm, tau_m = np.empty(n_arm), np.empty(n_arm), np.zeros(n_arm)
     na_model = arm_a.shape[0]
     M_full, n_full = np.empty((nv, nv)), np.empty(nv)
+    M_aug, n_aug = np.empty((nx, nx)), np.empty(nx)  # the arm model's (augmented: modes included)
     Mstar, hstar = np.empty((na_model, na_model)), np.empty(na_model)
     model_law = arm_code == 2 or arm_code == 3  # arm_laws.MODEL_LAWS
     on_time, pen_max = np.zeros(ns), np.zeros(ns)
@@ -224,7 +241,7 @@ def run_ticks(
     q_m, v_m = np.empty(nq), np.empty(nv)
     R_t = np.empty((n, 3, 3)) if sensed else R_rel
     p_t = np.empty((n, 3)) if sensed else p_rel
-    me_t = np.empty(10) if sensed else me
+    me_t = np.empty(10) if (sensed or ne > 0) else me  # with modes: the rigid me for the laws, me_t with the modal terms
     oR_t, op_t = np.empty((n, 3, 3)), np.empty((n, 3))
     t = t0
     steps = 0
@@ -250,6 +267,11 @@ def run_ticks(
         if sensed:
             joint_transforms(kind, axis, place_R, place_p, idx_q, q, R_t, p_t)
             momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_t, p_t, v, me_t, work)
+        elif ne > 0:
+            for a in range(10):
+                me_t[a] = me[a]
+        if ne > 0:  # work[16], work[17]: the true state's world placements, as momenta_energy leaves them
+            modal_momentum_energy(q, v, eta, etadot, modal_B, neg_omega2, mass, com, work[16], work[17], me_t)
         mom_on = False
         if mom_model is not None:
             if mom_vary:
@@ -321,7 +343,12 @@ def run_ticks(
                 qd_arm[i] = vs[arm_v[i]]
                 tau_m[i] = 0.0
             if arm_code >= 0:
-                if model_law:
+                if model_law and ne > 0:  # the augmented model, the true (η, η̇) (Sensed.eta, etadot)
+                    augmented_mass(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, modal_B, M_aug)
+                    augmented_bias(parent, kind, axis, inertia, idx_v, R_rel, p_rel, modal_B, neg_omega2, neg_2zo, vs, eta,
+                                   etadot, n_aug)
+                    arm_model_terms(M_aug, n_aug, arm_a, arm_p, Mstar, hstar)
+                elif model_law:
                     mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
                     bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, vs, n_full)
                     arm_model_terms(M_full, n_full, arm_a, arm_p, Mstar, hstar)
@@ -378,6 +405,10 @@ def run_ticks(
             tr_mom[k, a] = me_t[a]
             tr_mom[k, 3 + a] = me_t[6 + a]
         tr_energy[k] = me_t[9]
+        peak = 0.0
+        for i in range(ne):
+            peak = max(peak, abs(eta[i]))
+        tr_modal[k] = peak
         if nw and tick % 10 == 0:
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)
@@ -421,13 +452,13 @@ def run_ticks(
                     thruster_step(tree_t, thr, thr_t0, thr_on_times, q, v, tau, t, dt, q_new, v_new, impulse, thr_state, work)
             elif stop_on:
                 if not stop_step(tree_a, sj_v, sj_q, sj_lower, sj_upper, restitution, sj_side, sj_rebound, sj_since, q, v,
-                                 tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work, (no_Bt, no_BtB, no_e, no_e), no_e,
-                                 no_e, no_e, no_e, held):
+                                 tau, dt, t, q_new, v_new, on_time, pen_max, ev, ev_n, work, modal, eta, etadot, eta_new,
+                                 etadot_new, held):
                     return k + 1, steps, STOP_FAILED
             else:
-                rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, no_Bt, no_BtB, no_e,
-                           no_e, no_i, no_i, no_e, no_e, no_e, q, v, no_e, no_e, tau, dt, q_new, v_new, no_e, no_e, work,
-                           base_lock)  # empty unless the base is held: stop_step's signature, one compilation
+                rkmk4_step(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, modal_Bt, modal_BtB,
+                           neg_omega2, neg_2zo, no_i, no_i, no_e, no_e, no_e, q, v, eta, etadot, tau, dt, q_new, v_new, eta_new,
+                           etadot_new, work, base_lock)  # empty unless the base is held: stop_step's signature, one compilation
             t += dt
             st_t[steps] = t
             for a in range(nq):  # element loops, not slice assignment: no broadcast check to compile
@@ -436,6 +467,11 @@ def run_ticks(
             for a in range(nv):
                 v[a] = v_new[a]
                 st_v[steps, a] = v_new[a]
+            for a in range(ne):
+                eta[a] = eta_new[a]
+                etadot[a] = etadot_new[a]
+                st_eta[steps, a] = eta_new[a]
+                st_etadot[steps, a] = etadot_new[a]
             for i in range(nw):
                 st_tw[steps, i] = tau_applied[i]
             if thr is not None:
@@ -471,10 +507,17 @@ def run_ticks(
         for a in range(nq):
             if not math.isfinite(q[a]):
                 finite = False
+        emax = 0.0
+        for a in range(ne):
+            if not math.isfinite(eta[a]):
+                finite = False
+            emax = max(emax, abs(eta[a]))
         if not finite:
             return k + 1, steps, NON_FINITE
         if vmax > max_rate:
             return k + 1, steps, RATE_LIMIT
+        if ne and emax > max_modal:
+            return k + 1, steps, MODAL_LIMIT
         if settle_tol > 0:
             if error_angle(q[3:7], q_ref) < settle_tol:
                 if math.isnan(settled_since[0]):

@@ -2,9 +2,8 @@
 flexible modes on the base and payloads attached or released between phases: same results as the Python
 engine (``sms_cli.sim.engine.Simulation.run_python``), trace, metrics and recording (tests/test_compiled_ndi.py).
 
-The runner keeps what ``CompiledSimulation`` does (slices, progress, events, interruption) and adds the
-phases' payload changes: the SystemModel's payloads are attached or released as the Python loop does, and
-the tree arrays (loop and recording) re-read the body inertias; the law's observer is rebuilt.
+The runner keeps what ``CompiledSimulation`` does (slices, progress, events, interruption, the phases' payload
+changes, the recording with the modes) and rebuilds the law's observer when a payload changes the model.
 """
 
 from __future__ import annotations
@@ -27,76 +26,16 @@ class NdiCompiledSimulation(CompiledSimulation):
 
         super().__init__(sm, spec, recorder, progress, None, chunk_steps or CHUNK_STEPS, None)
         self.ndi = ndi
-        ne = sm.n_modes
-        B = sm.base_modal_coupling if ne else np.zeros((0, 6))
-        omega = np.concatenate([a.omega for a in sm.appendages]) if ne else np.zeros(0)
-        zeta = np.concatenate([a.zeta for a in sm.appendages]) if ne else np.zeros(0)
-        self.modal = (np.ascontiguousarray(B, dtype=float), np.ascontiguousarray(B.T, dtype=float),
-                      np.ascontiguousarray(B.T @ B, dtype=float), -(omega**2), -2.0 * zeta * omega)
 
     def _ndi_args(self, on: bool) -> tuple:
         return (on, *self.ndi.kernel_args())
 
-    def _modal_momenta(self, qs, vs, etas, etadots, mass_matrices: bool = False):
-        """[p, k about the CoM, k about the origin, energy] per sample, modes included (``ndi_loop.modal_sample_momenta``);
-        with ``mass_matrices`` also (that, the augmented mass matrices)."""
-        from sms_cli.sim.compiled.ndi_loop import modal_sample_momenta
-
-        tr = self.kinematics.tree
-        n = qs.shape[0]
-        out = np.empty((n, 10))
-        Ms = np.empty((n if mass_matrices else 0, self.sm.nx, self.sm.nx))
-        f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
-        modal_sample_momenta(tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], self.modal[0],
-                             self.modal[3], f(qs), f(vs), f(etas), f(etadots), out, Ms)
-        return (out, Ms) if mass_matrices else out
-
-    def _record_modal(self, times, qs, vs, etas, etadots, tau_w, tau_m, joint_ref, q_ref) -> None:
-        """Offer the plant-step states to the recorder and write the samples it picks: modal coordinates,
-        momenta with the modal terms and the locked velocity μ at (q, v, η̇) (``Simulation._record``)."""
-        from sms_cli.sim.compiled.momentum_control import locked_velocities_of
-
-        idx = self.rec.select(times)
-        if idx.size == 0:
-            return
-        qs, vs, etas, etadots = qs[idx], vs[idx], etas[idx], etadots[idx]
-        n = idx.size
-        refs = np.broadcast_to(q_ref, (n, 4))
-        mom, Ms = self._modal_momenta(qs, vs, etas, etadots, mass_matrices=bool(self.sm.wheels))
-        locked = None
-        if self.sm.wheels:  # μ from the augmented mass matrices (momentum_control.locked_velocities_of)
-            locked = np.empty((n, 3))
-            locked_velocities_of(Ms, np.concatenate([vs, etadots], axis=1), locked)
-        self.buffer.write(times[idx], qs, vs, etas, tau_w[idx], tau_m[idx], refs, joint_ref[idx], attitude_error(refs, qs[:, 3:7]),
-                          p=mom[:, 0:3], k=mom[:, 3:6], wrench=np.zeros((n, 6)) if self.record_wrench else None, locked=locked)
-
-    def _record_slice_modal(self, times, qs, vs, etas, etadots, tau_w, tau_m, joint_ref, q_ref, events) -> None:
-        """``_record_modal`` of a slice's steps with its joint-stop events in time order."""
-        start = 0
-        for row in events:
-            stop = int(np.searchsorted(times, row[0], side="left"))
-            if stop > start:
-                sl = slice(start, stop)
-                self._record_modal(times[sl], qs[sl], vs[sl], etas[sl], etadots[sl], tau_w[sl], tau_m[sl], joint_ref[sl], q_ref)
-                start = stop
-            self._write_events(row[None])
-        if start < times.size:
-            sl = slice(start, None)
-            self._record_modal(times[sl], qs[sl], vs[sl], etas[sl], etadots[sl], tau_w[sl], tau_m[sl], joint_ref[sl], q_ref)
-
     def _begin_phase(self, phase) -> bool:
-        """The phase's payload changes on the SystemModel (as ``Simulation._begin_phase``); True when the body
-        inertias changed (the tree arrays are re-read)."""
-        sm = self.sm
-        for name in phase.detach:
-            sm.detach_payload(name)
-        for name in phase.attach:
-            sm.attach_payload(name)
-        if phase.attach or phase.detach:
-            self.kinematics.refresh()
+        """The base runner's payload changes; the law's observer is rebuilt when the model changed."""
+        changed = super()._begin_phase(phase)
+        if changed:
             self.ndi.model_changed()
-            return True
-        return False
+        return changed
 
     def run(self):
         from sms_cli.sim.compiled.loop import ARM_BLOCKS, SETTLED
@@ -125,8 +64,9 @@ class NdiCompiledSimulation(CompiledSimulation):
         spans: list[tuple[int, float, float]] = []
         pieces: list[dict] = []
         if self.rec is not None:  # the initial state is part of the recording
-            self._record_modal(np.array([0.0]), q[None], v[None], eta[None], etadot[None], np.zeros((1, nw)),
-                               np.zeros((1, n_arm)), q_arm_ref[None], q_att_ref)
+            self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref,
+                         wrench=np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None], etas=eta[None],
+                         etadots=etadot[None])
         wall0 = time.perf_counter()
         try:
             for ip, phase in enumerate(spec.phases):
@@ -176,9 +116,10 @@ class NdiCompiledSimulation(CompiledSimulation):
                         if self.rec is not None:
                             held = lambda block: np.repeat(piece["arm"][:, block * n_arm:(block + 1) * n_arm],  # noqa: E731
                                                            self.n_sub, axis=0)[:n_steps]
-                            self._record_slice_modal(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_eta[:n_steps],
-                                                     st_etadot[:n_steps], st_tw[:n_steps], held(4), held(1), q_ref,
-                                                     ev[:ev_n[0]])
+                            self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps],
+                                               np.broadcast_to(q_ref, (n_steps, 4)),
+                                               np.zeros((n_steps, 6)) if self.record_wrench else None, held(4), held(1),
+                                               ev[:ev_n[0]], etas=st_eta[:n_steps], etadots=st_etadot[:n_steps])
                     self.progress.update(t)
                     raise_on_failure(code, v, spec, MODAL_LIMIT)
                     if code == SETTLED:
@@ -270,7 +211,7 @@ class NdiCompiledSimulation(CompiledSimulation):
                 np.empty((0, nw)), np.empty((0, EV_COLS)), np.zeros(1, dtype=np.int64)), cost=8.0),
         ]
         tr = self.kinematics.tree  # the final state's momenta (every run) and the recording's
-        momenta = [KernelCall(f"{mod}.ndi_loop:modal_sample_momenta", (
+        momenta = [KernelCall(f"{mod}.modal:modal_sample_momenta", (
             tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], B, no2, q[None].copy(), v[None].copy(),
             eta[None].copy(), ed[None].copy(), np.empty((1, 10)), np.empty((0, sm.nx, sm.nx))), cost=3.0)]
         if self.rec is not None:

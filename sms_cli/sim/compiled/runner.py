@@ -32,9 +32,15 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
     ndi = spec.ndi is not None  # the NDI loop (ndi_runner) takes base-mounted modes and payload changes
     real_thrusters = getattr(sm, "thrusters", None) is not None and uses_thrusters(spec)
     momentum = isinstance(att_spec, _momentum_laws())
+    modes = sm.n_modes > 0
+    changes = any(p.attach or p.detach for p in spec.phases)
     checks = [
-        (sm.n_modes > 0 and not ndi, "the model has flexible modes"),
-        (sm.n_modes > 0 and sm.base_modal_coupling is None, "an appendage is not mounted on the base"),
+        (modes and sm.base_modal_coupling is None, "an appendage is not mounted on the base"),
+        (modes and any(p.base_mode == "fixed" for p in spec.phases), "a phase holds the base fixed on a model with flexible modes"),
+        (modes and momentum, "the mission combines a momentum law with flexible modes"),
+        (modes and real_thrusters, "the mission combines real thrusters with flexible modes"),
+        (modes and spec.resolved_rate is not None and any(p.end_effector is not None for p in spec.phases),
+         "the mission combines end-effector tracking with flexible modes"),
         (bool(sm.springs), "the model has spring joints"),
         (ndi and (att_spec is not None or spec.arm is not None), "the mission combines NDI with an attitude or arm law"),
         (ndi and spec.resolved_rate is not None, "the mission combines NDI with resolved-rate control"),
@@ -48,7 +54,7 @@ def unsupported_reason(sm: SystemModel, spec: SimulationSpec, att_spec) -> str |
          "a phase holds the base fixed on a mission with real thrusters or a momentum law"),
         (momentum and any(p.attitude_profile != "step" for p in spec.phases),
          "a momentum law follows a smooth attitude profile"),
-        (any(p.attach or p.detach for p in spec.phases) and not ndi, "a phase attaches or releases a payload"),
+        (changes and (momentum or real_thrusters), "a phase attaches or releases a payload on a mission with real thrusters or a momentum law"),
         (ndi and any(p.base_mode == "fixed" for p in spec.phases), "a phase of an NDI mission holds the base fixed"),
         (ndi and any(p.attitude_profile != "step" for p in spec.phases), "an NDI mission has a smooth attitude profile"),
         (ndi and any(p.end_effector is not None for p in spec.phases), "an NDI mission tracks an end-effector target"),
@@ -98,6 +104,12 @@ class CompiledSimulation:
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
+        ne = sm.n_modes  # the base-mounted modes: B (n_η×6), Bᵀ, BᵀB, −Ω², −2ζΩ (the CompiledPlant's)
+        B = sm.base_modal_coupling if ne else np.zeros((0, 6))
+        omega = np.concatenate([a.omega for a in sm.appendages]) if ne else np.zeros(0)
+        zeta = np.concatenate([a.zeta for a in sm.appendages]) if ne else np.zeros(0)
+        self.modal = (np.ascontiguousarray(B, dtype=float), np.ascontiguousarray(B.T, dtype=float),
+                      np.ascontiguousarray(B.T @ B, dtype=float), -(omega**2), -2.0 * zeta * omega)
         self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
         self.record_wrench = records_base_wrench(spec)  # thrusters, disturbances: /base/wrench (sms_cli.sim.timing)
         from sms_cli.sim.compiled.disturbances import disturbance_table
@@ -122,12 +134,14 @@ class CompiledSimulation:
         return self.kinematics(qs, vs)
 
     def _record(self, times, qs, vs, tau_w, ref_quat, err_vec=None, wrench=None, tau_m=None, joint_ref=None,
-                held=False, extra=None, mom=None) -> None:
+                held=False, extra=None, mom=None, etas=None, etadots=None) -> None:
         """Offer the plant-step states to the recorder and write the samples it picks (``ref_quat``: one
         reference or one per step; ``wrench``: the thrusters' wrench on the base per step, for
         ``/base/wrench``; ``tau_m``, ``joint_ref``: the arm's torques and joint reference per step; ``held``:
         the base is held, its support's wrench on ``/base/reaction``; ``extra``: more topics, {topic: {field:
-        values per step}}; ``mom``: [p, k about the CoM, μ] per step at the mass of each step, with real thrusters)."""
+        values per step}}; ``mom``: [p, k about the CoM, μ] per step at the mass of each step, with real thrusters;
+        ``etas``, ``etadots``: the modal coordinates and rates per step, models with modes: the momenta with their
+        terms, μ from the augmented mass matrix at (q, v, η̇), as ``Simulation._record``)."""
         idx = self.rec.select(times)
         if idx.size == 0:
             return
@@ -135,16 +149,57 @@ class CompiledSimulation:
         n = idx.size
         refs = np.broadcast_to(ref_quat if np.ndim(ref_quat) == 1 else ref_quat[idx], (n, 4))
         err = attitude_error(refs, qs[:, 3:7]) if err_vec is None else err_vec
-        none = np.zeros((n, 0))  # no modes
+        eta = np.zeros((n, 0)) if etas is None else etas[idx]
         n_arm = len(self.sm.arm)
         tau_m = np.zeros((n, n_arm)) if tau_m is None else tau_m[idx]
         joint_ref = np.zeros((n, n_arm)) if joint_ref is None else joint_ref[idx]
         reaction = self._held_reactions(qs, vs[idx], tau_w[idx], tau_m) if held else None
         extra = None if extra is None else {k: {f: x[idx] for f, x in d.items()} for k, d in extra.items()}
         p, k, locked = (None, None, None) if mom is None else (mom[idx, 0:3], mom[idx, 3:6], mom[idx, 6:9])
-        self.buffer.write(times[idx], qs, vs[idx], none, tau_w[idx], tau_m, refs, joint_ref, err, p, k, reaction=reaction,
+        if self.sm.n_modes:
+            p, k, locked = self._modal_record_momenta(qs, vs[idx], eta, etadots[idx])
+        self.buffer.write(times[idx], qs, vs[idx], eta, tau_w[idx], tau_m, refs, joint_ref, err, p, k, reaction=reaction,
                           wrench=None if wrench is None else wrench[idx], extra=extra,
                           locked=locked if self.sm.wheels else None)
+
+    def _modal_momenta(self, qs, vs, etas, etadots, mass_matrices: bool = False):
+        """[p, k about the CoM, k about the origin, energy] per sample, modes included (``modal.modal_sample_momenta``);
+        with ``mass_matrices`` also (that, the augmented mass matrices)."""
+        from sms_cli.sim.compiled.modal import modal_sample_momenta
+
+        tr = self.kinematics.tree
+        n = qs.shape[0]
+        out = np.empty((n, 10))
+        Ms = np.empty((n if mass_matrices else 0, self.sm.nx, self.sm.nx))
+        f = lambda x: np.ascontiguousarray(x, dtype=float)  # noqa: E731
+        modal_sample_momenta(tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], self.modal[0],
+                             self.modal[3], f(qs), f(vs), f(etas), f(etadots), out, Ms)
+        return (out, Ms) if mass_matrices else out
+
+    def _modal_record_momenta(self, qs, vs, etas, etadots):
+        """(p, k about the CoM, μ or None without wheels) of recorded samples with modes: μ at (q, v, η̇) from the
+        augmented mass matrices (``momentum_control.locked_velocities_of``)."""
+        from sms_cli.sim.compiled.momentum_control import locked_velocities_of
+
+        mom, Ms = self._modal_momenta(qs, vs, etas, etadots, mass_matrices=bool(self.sm.wheels))
+        locked = None
+        if self.sm.wheels:
+            locked = np.empty((qs.shape[0], 3))
+            locked_velocities_of(Ms, np.concatenate([vs, etadots], axis=1), locked)
+        return mom[:, 0:3], mom[:, 3:6], locked
+
+    def _begin_phase(self, phase) -> bool:
+        """The phase's payload changes on the SystemModel (as ``Simulation._begin_phase``); True when the body
+        inertias changed (the tree arrays, of the loop and the recording, are re-read)."""
+        sm = self.sm
+        for name in phase.detach:
+            sm.detach_payload(name)
+        for name in phase.attach:
+            sm.attach_payload(name)
+        if phase.attach or phase.detach:
+            self.kinematics.refresh()
+            return True
+        return False
 
     def _disturbances(self, ts, qs) -> np.ndarray:
         """The disturbances' wrench [f; n] (base frame) at each time and configuration (``disturbances``)."""
@@ -268,7 +323,7 @@ class CompiledSimulation:
 
     # ------------------------------------------------------------------ main loop
     def run(self):
-        from sms_cli.sim.compiled.loop import ARM_BLOCKS, RUNNING, SETTLED, X_N, X_REF, run_ticks
+        from sms_cli.sim.compiled.loop import ARM_BLOCKS, MODAL_LIMIT, RUNNING, SETTLED, X_N, X_REF, run_ticks
         from sms_cli.sim.compiled.momentum_control import locked_velocity
         from sms_cli.sim.compiled.thruster_run import NO_THRUSTERS
         from sms_cli.sim.compiled.stops import EV_COLS
@@ -277,6 +332,8 @@ class CompiledSimulation:
 
         sm, spec, wh = self.sm, self.spec, self.wheels
         q, v = sm.q0.astype(float).copy(), sm.v0.astype(float).copy()
+        eta, etadot = sm.eta0.astype(float).copy(), sm.etadot0.astype(float).copy()
+        ne = eta.size
         nw = wh.n
         wheel_v = np.asarray(sm.idx.wheels, dtype=np.int64)
         memory = self.law.memory if hasattr(self.law, "memory") else np.zeros(4)  # the attitude law's state
@@ -306,7 +363,8 @@ class CompiledSimulation:
         last_T = np.zeros(3)
         if self.rec is not None:  # the initial state is part of the recording
             self._record(np.array([0.0]), q[None], v[None], np.zeros((1, nw)), q_att_ref, np.zeros((1, 3)),
-                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None],
+                         np.zeros((1, 6)) if self.record_wrench else None, joint_ref=q_arm_ref[None], etas=eta[None],
+                         etadots=etadot[None],
                          extra={**(thr.initial_topics() if thr else {}),
                                 **(lyap.topic(lyap.terms(q, v, q_att_ref)[None]) if mlaw else {})} or None)
         wall0 = time.perf_counter()
@@ -318,6 +376,7 @@ class CompiledSimulation:
                     self.rec.write_event(t, "phase", phase_event(phase))
                 if phase.attach or phase.detach or phase.base_mode == "fixed" or held:
                     segment += 1
+                self._begin_phase(phase)
                 held = phase.base_mode == "fixed"
                 if held:
                     v[:6] = 0.0  # the support takes the base's momentum at the phase start
@@ -342,17 +401,19 @@ class CompiledSimulation:
                           "base_torque": np.empty((m, 3)), "momentum": np.empty((m, 6)), "energy": np.empty(m),
                           "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)), "x": np.empty((m, X_N)),
                           "locked": np.empty((m if mlaw else 0, 3)), "lyapunov": np.empty(m if mlaw else 0),
-                          "wrench": np.zeros((m if mlaw else 0, 6))}
+                          "wrench": np.zeros((m if mlaw else 0, 6)), "modal_peak": np.empty(m)}
                     st_t, st_q, st_v, st_tw = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv)), np.empty((ms, nw))
+                    st_eta, st_etadot = np.empty((ms, ne)), np.empty((ms, ne))
                     st_lyap = np.empty((ms if mlaw else 0, lyap.width if mlaw else 0))
                     st_thr, st_mom = thr.step_arrays(ms) if thr else (np.empty((0, 1)), np.empty((0, 9)))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
                     t_start, q_start = t, q.copy()  # the slice's first step starts here (its disturbances)
                     noise = self.sensors.draw(m)
                     tr_rows = [tr[k] for k in ("t", "att_err", "wheel_speed", "wheel_torque", "saturated", "base_torque",
-                                               "momentum", "energy", "arm", "x", "locked", "lyapunov", "wrench")]
+                                               "momentum", "energy", "arm", "x", "locked", "lyapunov", "wrench", "modal_peak")]
 
-                    def call(k0, mk, s0, t0, thr_args, _tr=tr_rows, _st=(st_t, st_q, st_v, st_tw, st_lyap), _s2=(st_thr, st_mom),
+                    def call(k0, mk, s0, t0, thr_args, _tr=tr_rows, _st=(st_t, st_q, st_v, st_eta, st_etadot, st_tw, st_lyap),
+                             _s2=(st_thr, st_mom),
                              _noise=noise,
                              _phase=(law_on, thrusters, att.params, settle_tol, phase, ref_times, ref_points, joints, t_phase0, tick0,
                                      rr_args)):
@@ -360,11 +421,12 @@ class CompiledSimulation:
                         (law_on_, thrusters_, att_prof_, settle_tol_, phase_, ref_times_, ref_points_, joints_, t_phase0_, tick0_,
                          rr_args_) = _phase
                         return run_ticks(
-                            *self._tree_args(), *wheel_args, law_on_, thrusters_, torque_limit, *law_args, att_prof_, settle_tol_,
+                            *self._tree_args(), *self.modal, *wheel_args, law_on_, thrusters_, torque_limit, *law_args, att_prof_, settle_tol_,
                             float(phase_.settle_time), *mom_args, *arm_args, ref_times_, ref_points_, joints_.step, t_phase0_,
                             *stop_args, *rr_args_, self.dist, *thr_args, self.sensors.noisy, self.sensors.par, _noise[k0:k0 + mk],
                             t0, float(spec.dt), self.n_sub, tick0_ + k0, mk,
-                            float(spec.divergence.max_rate), q, v, memory, eff, settled, *(a[k0:k0 + mk] for a in _tr),
+                            float(spec.divergence.max_rate), float(spec.divergence.max_modal_amplitude), q, v, eta, etadot,
+                            memory, eff, settled, *(a[k0:k0 + mk] for a in _tr),
                             *(a[s0:] for a in _st), *(a[s0:] for a in _s2), ev, ev_n)
 
                     if thr is None:
@@ -419,9 +481,10 @@ class CompiledSimulation:
                                                            self.n_sub, axis=0)[:n_steps]
                             self._record_slice(st_t[:n_steps], st_q[:n_steps], st_v[:n_steps], st_tw[:n_steps],
                                                np.repeat(piece["x"][:, X_REF:X_REF + 4], self.n_sub, axis=0)[:n_steps],
-                                               wrench, hold(4), hold(1), ev[:ev_n[0]], held, extra or None, st_m)
+                                               wrench, hold(4), hold(1), ev[:ev_n[0]], held, extra or None, st_m,
+                                               st_eta[:n_steps] if ne else None, st_etadot[:n_steps] if ne else None)
                     self.progress.update(t)
-                    raise_on_failure(code, v, spec)
+                    raise_on_failure(code, v, spec, MODAL_LIMIT)
                     if code == SETTLED:
                         break
                     tick0 += ticks
@@ -445,13 +508,17 @@ class CompiledSimulation:
         wall = time.perf_counter() - wall0
         filled = [p for p in pieces if p["t"].size]
         if status == "completed" and filled:  # the final state, as the Python loop adds it
-            _, _, mom = self._samples(q[None], v[None]) if thr is None else (None, None, thr.momenta(q, v)[None])
+            if ne:
+                mom = self._modal_momenta(q[None], v[None], eta[None], etadot[None])
+            else:
+                _, _, mom = self._samples(q[None], v[None]) if thr is None else (None, None, thr.momenta(q, v)[None])
             pieces.append({"t": np.array([t]), "att_err": np.array([np.linalg.norm(attitude_error(q_att_ref, q[3:7]))]),
                            "wheel_speed": v[wheel_v][None], "wheel_torque": filled[-1]["wheel_torque"][-1:],
                            "saturated": np.array([False]), "base_torque": last_T[None],
                            "momentum": np.concatenate([mom[0, 0:3], mom[0, 6:9]])[None], "energy": mom[0, 9:10],
                            "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled),
-                           "segment": np.array([segment]), "x": self._final_x_row(q, v, q_att_ref, held, filled)})
+                           "segment": np.array([segment]), "x": self._final_x_row(q, v, q_att_ref, held, filled),
+                           "modal_peak": np.array([float(np.max(np.abs(eta))) if ne else 0.0])})
             if mlaw:  # μ at the final state and the last step's W (the Python loop's last _trace)
                 mu = np.empty((1, 3))
                 locked_velocity(v, mom_args[1] if thr is None else thr.law_model(q), mu[0])
@@ -473,29 +540,29 @@ class CompiledSimulation:
         return result
 
     def _record_slice(self, times, qs, vs, tau_w, refs, wrench, tau_m, joint_ref, events, held=False, extra=None,
-                      mom=None) -> None:
+                      mom=None, etas=None, etadots=None) -> None:
         """``_record`` of a slice's steps (``refs``: the attitude reference per step; ``held``: the base held;
-        ``extra``, ``mom``: ``_record``'s, per step) with its joint-stop events in time order (an event before
+        ``extra``, ``mom``, ``etas``, ``etadots``: ``_record``'s, per step) with its joint-stop events in time order (an event before
         the samples at and after its time)."""
-        def part(sl):  # the extra topics and momenta of the steps sl
+        def part(sl):  # the extra topics, momenta and modal states of the steps sl
             ex = None if extra is None else {k: {f: x[sl] for f, x in d.items()} for k, d in extra.items()}
-            return ex, None if mom is None else mom[sl]
+            return ex, None if mom is None else mom[sl], {} if etas is None else {"etas": etas[sl], "etadots": etadots[sl]}
 
         start = 0
         for row in events:
             stop = int(np.searchsorted(times, row[0], side="left"))
             if stop > start:
                 sl = slice(start, stop)
-                ex, mo = part(sl)
+                ex, mo, md = part(sl)
                 self._record(times[sl], qs[sl], vs[sl], tau_w[sl], refs[sl], wrench=None if wrench is None else wrench[sl],
-                             tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held, extra=ex, mom=mo)
+                             tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held, extra=ex, mom=mo, **md)
                 start = stop
             self._write_events(row[None])
         if start < times.size:
             sl = slice(start, None)
-            ex, mo = part(sl)
+            ex, mo, md = part(sl)
             self._record(times[sl], qs[sl], vs[sl], tau_w[sl], refs[sl], wrench=None if wrench is None else wrench[sl],
-                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held, extra=ex, mom=mo)
+                         tau_m=tau_m[sl], joint_ref=joint_ref[sl], held=held, extra=ex, mom=mo, **md)
 
     def _final_x_row(self, q, v, q_att_ref, held, filled) -> np.ndarray:
         """The loop.X_* row of the final state: the last reference, no end-effector error, the held base's
@@ -549,7 +616,8 @@ class CompiledSimulation:
 
         # the extra columns (EE error, held base's reaction); NaN, as in the Python loop, where a loop has none (NDI)
         x = cat("x", X_N) if any("x" in p for p in pieces) else np.full((n, X_N), np.nan)
-        a.update({"ee_err": x[:, X_EE_ERR], "modal_peak": np.zeros(n), "base_reaction": x[:, X_REACTION:X_REACTION + 6],
+        peak = cat("modal_peak") if any("modal_peak" in p for p in pieces) else np.zeros(n)  # max |η| per tick
+        a.update({"ee_err": x[:, X_EE_ERR], "modal_peak": peak, "base_reaction": x[:, X_REACTION:X_REACTION + 6],
                   "segment": cat("segment").astype(int)})
         arm = cat("arm", 7 * n_arm + 6)
         block = lambda b: arm[:, b * n_arm:(b + 1) * n_arm]  # noqa: E731  (loop.ARM_* blocks)
