@@ -230,7 +230,8 @@ def test_divergence_stops_both_engines_at_the_same_step(tmp_path):
 def test_engine_choice(tmp_path):
     from sms_cli.sim.engine import Simulation
 
-    path = tmp_path / "flexible.yaml"  # a flexible panel without NDI: the compiled loop refuses the model
+    # a flexible panel on a mission whose phases hold the base fixed: the compiled loop refuses the combination
+    path = tmp_path / "flexible.yaml"
     path.write_text(f"extends: {ROOT / 'missions' / 'chevallard_deploy_track.yaml'}\nname: flexible\nappendages:\n"
                     "  - {name: panel, link: base_link, modes: [{frequency: 0.5 Hz, damping: 0.005, "
                     "participation: [0, 0, 0, 0, 0, 2.0]}]}\n")
@@ -240,7 +241,7 @@ def test_engine_choice(tmp_path):
     with pytest.raises(InputError) as exc:
         Simulation(sm, spec.model_copy(update={"engine": "compiled"}), None, progress=False).run()
     assert "compiled engine cannot run this mission" in exc.value.render() and exc.value.exit_code == 2
-    assert "the model has flexible modes" in exc.value.render()
+    assert "a phase holds the base fixed on a model with flexible modes" in exc.value.render()
     assert Simulation(sm, spec, None, progress=False).compiled_unsupported() is not None
 
 

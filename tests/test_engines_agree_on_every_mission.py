@@ -38,7 +38,10 @@ MISSIONS = _single_spacecraft_simulations()
 def _shortened(path: Path, engine: str) -> str:
     """The mission text of ``path`` with ``engine`` and each phase (its ``auto`` durations and waypoint times as
     ``sms simulate`` plans them) cut at PHASE_CAP_S, the waypoints after the cut dropped so that the motion before
-    it is the mission's own; a phase whose first waypoint lies after the cut ends at that waypoint instead.
+    it is the mission's own; a phase whose first waypoint lies after the cut ends at that waypoint instead (a
+    rest-to-rest move sized by ``duration: auto`` has its only waypoint at its end). A mission with assembly tasks
+    keeps its phases up to the first grasp (pulsar_full: the hold, the first reach, the grasp that moves a tile's
+    mass from the store to the end effector; its later moves are hundreds of seconds each).
 
     The planned phases include those of the assembly tasks (``simulation.assembly``): the child writes
     ``assembly: null``, which ``extends`` merges as a replacement (``mission.load._merge``: a non-mapping child
@@ -51,6 +54,8 @@ def _shortened(path: Path, engine: str) -> str:
     _, sim, _ = prepared_simulation(loaded)
     phases = []
     for phase in sim.phases:
+        if loaded.mission.simulation.assembly is not None and any(p["kind"] == "grasp" for p in phases):
+            break
         d = phase.model_dump(mode="json", exclude_unset=True)
         d["duration"] = float(phase.duration)
         if d["duration"] > PHASE_CAP_S:
