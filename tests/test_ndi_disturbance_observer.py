@@ -78,7 +78,7 @@ def test_both_loops_equal_with_the_disturbance_observer(tmp_path, pulsar):  # no
     assert py["overall"]["saturation_time_s"] == 0.0
 
 
-HOLD = "    - {name: hold, kind: hold, duration: 300 s, attitude: [0, 0, 0]}\n"
+HOLD = "    - {name: hold, kind: hold, duration: 120 s, attitude: [0, 0, 0]}\n"
 # a constant torque on the base, and Coulomb friction in the wheel bearings: constant disturbances of the
 # actuators' dynamics once the wheels spin one way
 DISTURBANCES = ("  disturbances: [{kind: constant, frame: base, torque: [0, 0.02, 0]}]\n"
@@ -99,7 +99,7 @@ def _hold(pulsar, gains):
 
 
 def test_constant_disturbances_are_estimated_and_their_joint_error_removed(pulsar):  # noqa: F811
-    """A 300 s attitude hold under constant disturbances of the actuators' dynamics (the Python loop: the compiled
+    """A 120 s attitude hold under constant disturbances of the actuators' dynamics (the Python loop: the compiled
     NDI loop does not take disturbance wrenches; both loops call the same observer kernels, held equal above).
 
     - The wheel entries of the estimate τ̂_d must reach the disturbance of the wheels' reduced dynamics,
