@@ -1,6 +1,6 @@
 """Chapter 4 (NDO) LMI of Kraiem 2022 (4.27) in the exactly decoupled form of
 ``direct.structured_problem`` against oracles that cannot be tuned: Clarabel on the full form
-``lmi._build`` (same optimum), the full Θ evaluated at the decoupled form's point and the
+``lmi._build`` (no better optimum), the full Θ evaluated at the decoupled form's point and the
 decoupled blocks at the full form's point (same feasible set, same boundary along a line), and
 ``verify_lmi`` (poles, certificate, Gramian, simulation, full Θ) on the returned gains."""
 
@@ -110,8 +110,7 @@ def test_thesis_shaped_ndo_problem_solves_and_verifies_with_the_dedicated_solver
     """(a) 10 linearisations sharing the variables, PULSAR-shaped with n_q = 8 (6 wheels, rail,
     1 arm joint) and 2 modes (n_e = 7): the decoupled form converges in the dedicated solver
     alone and every check of verify_lmi passes, including the full (4.27) Θ (39 rows) at each
-    linearisation. (The thesis's n_q = 14 with 22 modes, and already n_q = 10 with 6 modes, do
-    not converge yet: the solver stalls far from the optimum.)"""
+    linearisation."""
     req = ndo_request(10, n_arm=1, n_modes=2)
     res = synthesize(req, solver="ipm")
     assert res.solver.startswith("sms-ipm") and res.lmi_rows == 4 * 8 + 7
@@ -120,17 +119,32 @@ def test_thesis_shaped_ndo_problem_solves_and_verifies_with_the_dedicated_solver
     assert {"full_lmi", "ndo_poles", "certificate", "gamma_bound"} <= {c.name for c in ver.checks}
 
 
+def test_thesis_size_ndo_problem_solves_and_verifies():
+    """(a') Kraiem 2022's own size, one linearisation: n_q = 14 (6 wheels, rail, 7 arm joints),
+    22 modes (n_e = 47): 1460 variables, the full (4.27) Θ has 103 rows. The dedicated solver
+    converges alone (measured: 31 iterations, 41 s CPU) and every check of verify_lmi passes,
+    including the full Θ."""
+    req = ndo_request(1)
+    res = synthesize(req, solver="ipm")
+    assert res.solver.startswith("sms-ipm") and res.lmi_rows == 4 * 14 + 47 and res.n_variables == 1460
+    ver = verify_lmi(req, res)
+    assert ver.passed, [c.detail for c in ver.failures()]
+    assert {"full_lmi", "ndo_poles", "certificate", "gamma_bound"} <= {c.name for c in ver.checks}
+
+
 @pytest.mark.parametrize("tasks,n_arm,n_modes", [(1, 1, 2), (4, 1, 2)])
-def test_decoupled_optimum_equals_clarabel_on_the_full_form(tasks, n_arm, n_modes):
-    """(b) Same optimum: γ of the decoupled form (dedicated solver) equals Clarabel's on the full
-    form within 5e-4, and both verify. Measured: +5e-5 (1 task; the dedicated solver's gap 1e-6
-    is relative to 1 + |objective|, absolute for these small γ̃²) and −1.7e-4 (4 tasks: Clarabel
-    stops above a decoupled point that passes the full Θ and the certificate)."""
+def test_decoupled_optimum_is_at_least_clarabels_on_the_full_form(tasks, n_arm, n_modes):
+    """(b) Same problem: γ of the decoupled form (dedicated solver) is not above Clarabel's on the
+    full form (to 5e-4), and both verify — so the dedicated γ is a proven bound (certificate and
+    full Θ at its point) at least as good as Clarabel's. Clarabel stops above the optimum on this
+    form: 1 task, γ 0.11313 at its tolerances 1e-7 (``lmi._solve``), 0.11279 at 1e-10, the
+    dedicated solver 0.11260 (measured; also on the decoupled blocks Clarabel at 1e-9 is 0.35 %
+    above it in γ̃²)."""
     req = ndo_request(tasks, n_arm=n_arm, n_modes=n_modes)
     ipm = synthesize(req, solver="ipm")
     _, _, cla = _clarabel_full(req)
     assert ipm.solver.startswith("sms-ipm")
-    assert abs(ipm.gamma - cla.gamma) <= 5e-4 * cla.gamma
+    assert ipm.gamma <= cla.gamma * (1 + 5e-4)
     for res in (ipm, cla):
         ver = verify_lmi(req, res)
         assert ver.passed, (res.solver, [c.detail for c in ver.failures()])
