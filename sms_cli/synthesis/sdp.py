@@ -34,6 +34,12 @@ the multiplier step is shortened so that the certificate's residual cannot grow 
 jump to 1e2), and the run stops after four iterations without halving the gap, returning the
 best iterate (smallest gap among those with feasible residuals) with status 'failed'.
 
+When μ grows at five iterations in a row without the gap halving, the run is diverging (what an
+infeasible LMI does: the chapter 4 test data at the thesis size with too loose observer
+initial-error bounds ran for minutes with γ̃² → 1e5); it stops with status 'failed' and the
+multipliers' Farkas measure (``SdpResult.farkas``), which bounds from below the size of any
+feasible point.
+
 The solver does not certify infeasibility: it returns status 'optimal' only when the relative
 gap and the LMI (dual) residual are below ``tol`` and the multipliers' residual and objective
 mismatch below OPT_TOL; anything else is 'failed' (``gap`` says how close it came), and the
