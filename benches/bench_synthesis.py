@@ -282,6 +282,50 @@ def print_tasks(data: dict) -> None:
           "of the chapter 4 LMI, 106×106 each (with the NDO rows).")
 
 
+def one_ndo(tasks: int, n_arm: int, n_modes: int) -> dict:
+    """Chapter 4 (NDO) over ``tasks`` linearisations: tests/test_synthesis_ndo_scale.ndo_request
+    (PULSAR-shaped: 6 wheels, rail, n_arm joints, n_modes modes; the thesis's size is n_arm 7,
+    n_modes 22), dedicated solver on the decoupled form, every result through verify_lmi."""
+    from test_synthesis_ndo_scale import ndo_request
+
+    from sms_cli.synthesis.lmi import synthesize
+    from sms_cli.synthesis.verify import verify_lmi
+
+    req = ndo_request(tasks, n_arm=n_arm, n_modes=n_modes)
+    m = req.nominal[0]
+    row = {"tasks": tasks, "n_q": m.n_q, "n_e": m.n_e, "theta_rows": 4 * m.n_q + m.n_e,
+           "mosek_s": THESIS_T43.get(tasks, (None,))[0]}
+    t, c = time.perf_counter(), time.process_time()
+    try:
+        res = synthesize(req, diagnose=False, solver="ipm")
+    except Exception as exc:  # noqa: BLE001 — the bench records why a size failed
+        row.update(seconds=None, cpu_s=time.process_time() - c, wall_s=time.perf_counter() - t, error=str(exc)[:80])
+        return row
+    row.update(seconds=res.solve_time, wall_s=time.perf_counter() - t, cpu_s=time.process_time() - c,
+               iterations=res.solver, gamma=res.gamma, verified=bool(verify_lmi(req, res).passed))
+    return row
+
+
+def sweep_ndo(n_arm: int, n_modes: int, tasks: list[int]) -> None:
+    """--ndo: Table 4.3's axis on the chapter 4 problem; saved under 'ndo_rows' with the calibration."""
+    data = json.loads(SWEEP_JSON.read_text())
+    data["ndo_machine"] = machine()
+    data["ndo_rows"] = []
+    print(f"{'|T|':>5}{'n_q':>4}{'n_e':>4}{'Θ rows':>7}{'wall s':>9}{'CPU s':>9}{'γ':>10}  verified  "
+          f"{'solver':<26}{'MOSEK s':>8}{'ratio':>7}")
+    for T in tasks:
+        r = one_ndo(T, n_arm, n_modes)
+        data["ndo_rows"].append(r)
+        save(data)
+        ratio = "" if r["seconds"] is None or not r["mosek_s"] else f"{r['wall_s'] / r['mosek_s']:7.3f}"
+        print(f"{T:>5}{r['n_q']:>4}{r['n_e']:>4}{r['theta_rows']:>7}{r['wall_s']:>9.2f}{r['cpu_s']:>9.2f}"
+              f"{'' if r['seconds'] is None else format(r['gamma'], '10.5g'):>10}  "
+              f"{str(r.get('verified', False)):<9} {r.get('iterations', r.get('error', ''))[:26]:<26}"
+              f"{r['mosek_s'] or '':>8}{ratio}", flush=True)
+    print("MOSEK s: Kraiem 2022 Table 4.3 (YALMIP + MOSEK, Intel i7; 106-row Θ per task). "
+          f"Calibration: dense Cholesky 1000×1000 = {data['ndo_machine']['calibration_cholesky_1000_s'] * 1e3:.1f} ms.")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--full", action="store_true", help="long sweep (sizes up to 175), saved as JSON")
@@ -302,7 +346,14 @@ def main() -> None:
                     help=f"sweep the number of linearisations |T| at LMI size "
                          f"{3 * TASKS_MODEL[0] + 2 * TASKS_MODEL[1] + 3} "
                          "(Table 4.3's axis), added to the saved JSON")
+    ap.add_argument("--ndo", nargs="*", type=int, metavar="N",
+                    help="chapter 4 (NDO) sweep over |T| (default Table 4.3's 10 … 154), saved under 'ndo_rows'")
+    ap.add_argument("--ndo-size", nargs=2, type=int, default=[7, 22], metavar=("N_ARM", "N_MODES"),
+                    help="--ndo problem: arm joints and modes (default the thesis's 7 and 22)")
     args = ap.parse_args()
+    if args.ndo is not None:
+        sweep_ndo(*args.ndo_size, args.ndo or sorted(THESIS_T43))
+        return
     if args.case:
         if args.case_tasks:
             print(json.dumps(one_tasks(*args.case, args.case_tasks, solver=args.solver)))

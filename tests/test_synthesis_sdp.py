@@ -191,3 +191,25 @@ def test_infeasible_request_falls_back_to_the_diagnosis():
     with pytest.raises(lmi.NumericalError) as exc:
         synthesize(req)  # auto: the dedicated solver fails, Clarabel diagnoses
     assert "'actuator_authority'" in exc.value.render()
+
+
+@pytest.mark.parametrize("case", ["scalar", "2x2"])
+def test_an_infeasible_lmi_stops_early_with_a_farkas_certificate(case):
+    """Infeasible LMIs with a closed-form Farkas certificate X ⪰ 0, AX = 0, ⟨C, X⟩ < 0:
+    x ≥ 1 and x ≤ −1 (X = (1, 1)), and [[x, 1], [1, −x]] ⪰ 0 (determinant −x² − 1 < 0; X =
+    [[1, −1], [−1, 1]]). The solver stops on divergence (μ growing) well before max_iter, with
+    status 'failed' and its multipliers proving infeasibility: ‖AX̂‖ → 0, i.e. no feasible point
+    with ‖x‖ below 1/‖AX̂‖ (> 1e6 here)."""
+    if case == "scalar":
+        blocks = [LmiBlock(np.array([0]), np.array([[-1.0]]), np.array([[[1.0]]])),
+                  LmiBlock(np.array([0]), np.array([[-1.0]]), np.array([[[-1.0]]]))]
+    else:
+        blocks = [LmiBlock(np.array([0]), np.array([[0.0, 1.0], [1.0, 0.0]]), np.diag([1.0, -1.0])[None])]
+    r = solve_lmi(np.array([1.0]), blocks, max_iter=100)
+    assert r.status == "failed"
+    assert r.iterations < 40
+    assert r.farkas < 1e-6
+    # a feasible neighbour: no certificate, optimal
+    ok = solve_lmi(np.array([1.0]), [LmiBlock(np.array([0]), np.array([[-1.0]]), np.array([[[1.0]]])),
+                                     LmiBlock(np.array([0]), np.array([[3.0]]), np.array([[[-1.0]]]))])
+    assert ok.status == "optimal" and abs(ok.x[0] - 1.0) < 1e-6 and ok.farkas == np.inf

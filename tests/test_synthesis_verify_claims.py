@@ -134,7 +134,14 @@ def test_a_scaled_observer_gain_fails_observer_poles(flagship):
 
 def test_a_too_fast_disturbance_observer_fails_ndo_poles_alone():
     """Kraiem 2022 chapter 4 variant: ε̇_d = −Q_d M⁻¹ ε_d, checked against the observer region
-    (radius 20 rad/s); Q_d × 10 puts its poles beyond it."""
+    (radius 20 rad/s). The NDO mode that the synthesis puts on the radius (Q_d ⪯ rM◇ active) is
+    moved to 30 rad/s alone: Q_d + ½λ M◇vvᵀM◇ (Q_d v = λM◇v, vᵀM◇v = 1). That is an improving
+    direction of the LMI, so the returned P still proves γ and only the NDO poles are wrong.
+    (A uniform Q_d × 10 also breaks the certificate, genuinely: P_d = Q_d⁻¹M◇Q_d⁻¹ is part of
+    the returned P, and at the optimum the dissipation inequality is active, so already Q_d × 1.02
+    makes −(A_clᵀP + PA_cl) indefinite; the Gramian γ stays below the solver's.)"""
+    from scipy.linalg import eigh
+
     from test_synthesis_lmi import toy_model
 
     m = toy_model([1e3] * 3 + [2e3] * 3 + [0.13, 20.0], n_modes=2, seed=6)
@@ -143,10 +150,18 @@ def test_a_too_fast_disturbance_observer_fails_ndo_poles_alone():
                            variant="ndi_observer_ndo", E_d=ellipsoid_from_box([0.01, 0.5]))
     res = synthesize(req)
     assert verify_lmi(req, res).passed
-    bad = dataclasses.replace(res, Q_d=res.Q_d * 10)
-    assert np.any(_outside(req.observer_region, -np.linalg.eigvals(bad.Q_d @ np.linalg.inv(m.M))))
+    lam, V = eigh(res.Q_d, m.M)
+    assert lam[-1] == pytest.approx(20.0, rel=1e-3)  # on the radius
+    v = V[:, -1]
+    bad = dataclasses.replace(res, Q_d=res.Q_d + 0.5 * lam[-1] * m.M @ np.outer(v, v) @ m.M)
+    poles = -np.linalg.eigvals(bad.Q_d @ np.linalg.inv(m.M))
+    assert np.sum(_outside(req.observer_region, poles)) == 1
     f = _failures(req, bad, "ndo_poles", only=True)
     assert "pole(s) outside the region" in f["ndo_poles"].detail
+    # the uniform mutation: the certificate fails with it (S indefinite), the true cost does not
+    ten = verify_lmi(req, dataclasses.replace(res, Q_d=res.Q_d * 10))
+    assert {"ndo_poles", "certificate"} <= {c.name for c in ten.failures()}
+    assert ten.gramian_cost < res.gamma**2
 
 
 # ---- certificate

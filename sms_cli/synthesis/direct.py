@@ -1,5 +1,6 @@
-"""The structured chapter 3 LMI problem of ``lmi._build_structured`` built directly as numpy
-blocks for ``sdp.solve_lmi`` (no cvxpy canonicalisation).
+"""The structured LMI problems built directly as numpy blocks for ``sdp.solve_lmi`` (no cvxpy
+canonicalisation): chapter 3 as in ``lmi._build_structured``, chapter 4 (NDO) in the exactly
+decoupled form of ``ndo_problem``'s docstring (same optimum as ``lmi._build``).
 
 Same variables, same constraints, same objective as ``_build_structured`` (the test suite checks
 that every block equals the corresponding cvxpy expression at random values of the variables).
@@ -9,7 +10,8 @@ it involves (exact, since the block is affine).
 
 Variables (scaled units of ``lmi._scale``): q11, q12, q22, wp, wv (per actuator), P (n_e×n_e
 symmetric, parameterised by its upper triangle), We (n_e×n_y), g = γ̃², s (per actuator),
-c_e, c_z (per actuator, only with a tracking box).
+c_e, c_z (per actuator, only with a tracking box); chapter 4 adds Q_d (n_q×n_q symmetric, scaled
+Q̃_d = R⁻¹Q_dR⁻¹/s_m) and s is then σ (see ``structured_problem``).
 """
 
 from __future__ import annotations
@@ -84,7 +86,39 @@ def _mat(entries, B: int) -> np.ndarray:
 
 
 def structured_problem(req, sc, eps: float, q_max: float):
-    """(layout, c, blocks) of ``_build_structured(req, sc)`` without dropped groups."""
+    """(layout, c, blocks) of ``_build_structured(req, sc)`` without dropped groups (chapter 3),
+    or of chapter 4's ``_build(req, sc)`` in the exactly decoupled form below.
+
+    Chapter 4 (Kraiem 2022 (4.27) as ``lmi._build`` states it; scaled units of ``lmi._scale``).
+    The full performance LMI per linearisation k is Θ_k ⪯ −εI with rows [z; ε_e; ε_d; γ-rows]::
+
+        Θ_k = [[(A_zQ + B_zW)^s, [0; B_ε],  B_zd,k Q_d,  QC_zᵀ],
+               [*,               (PA_e − W_eC_e)^s, D◇_xᵀ,  0],
+               [*,               *,     −2Q_d + D◇_sym,    0],
+               [*,               *,     *,              −γ̃²I]]
+
+    With z ordered per actuator the (ε_c,i, ε̇_c,i, γ_i) rows form one 3×3 block Γ_i (as in
+    chapter 3), coupled to the rest only through the ε̇_c,i row h_i,k = [b_i,k, (B̂_k Q_d)_i]
+    (b_i,k: row i of B_ε; B̂_k = −M◇_k⁻¹ scaled, the ε̇_c rows of B_zd,k). The Schur complement on
+    the Γ_i gives Ψ_k + Σ_i τ_i h_i,kᵀh_i,k ⪯ 0 with τ_i = −[(Γ_i + εI)⁻¹]_{ε̇ε̇} > 0 and
+    Ψ_k = [[(PA_e − W_eC_e)^s, D◇_xᵀ], [D◇_x, −2Q_d + D◇_sym]] + εI. Because h_i,k depends on Q_d,
+    the chapter 3 slack (s_i ≥ τ_i, term Σ s_i h_iᵀh_i) would be bilinear in (s, Q_d). Instead
+    σ_i ≤ 1/τ_i, which is the Schur complement of −(Γ_i + εI) on its ε̇ entry, i.e.::
+
+        −Γ_i − εI₃ − σ_i e₂e₂ᵀ ⪰ 0                       (3×3, per actuator, shared by all k)
+        −[[Ψ_k, H_kᵀ], [H_k, −diag(σ)]] ⪰ 0,  H_k = [B_ε,k, B̂_kQ_d]   (n_e + 2n_q, per k)
+
+    (the second is Ψ_k + H_kᵀdiag(σ)⁻¹H_k ⪯ 0 by Schur). Both are affine in every variable, and
+    the pair is equivalent to Θ_k ⪯ −εI (the optimal σ_i = 1/τ_i does not depend on k): no
+    term of (4.27) is dropped, unlike (4.41), which neglects the ε_d → z coupling B_zdQ_d. The
+    largest cone is the observer disk (2n_e) or this block (n_e + 2n_q) instead of Θ's 4n_q + n_e.
+    The other chapter 4 groups are ``_build``'s unchanged: Q_z's bounds, the pole regions,
+    2Q̃_d − Ẽ_d⁻¹ ⪰ M̃◇_j and αM̃◇_j ⪯ Q̃_d ⪯ rM̃◇_j at every linearisation and sample, the
+    budget c_e + Σc_z ≤ 1 − C_D, P ⪰ εI, Q_i ⪰ εI, Q_d ⪰ εI.
+    """
+    from sms_cli.synthesis.lmi import C_D, _bzd
+
+    ndo = req.variant == "ndi_observer_ndo"
     m0 = sc.models[0]
     n_q, n_e, n_y = m0.n_q, m0.n_e, m0.n_y
     lay = Layout()
@@ -98,6 +132,8 @@ def structured_problem(req, sc, eps: float, q_max: float):
     track = req.tracking is not None
     if track:
         lay.add("c_z", "vec", (n_q,))
+    if ndo:
+        lay.add("Qd", "sym", (n_q,))
     creg = req.controller_region.scaled(sc.omega_c)
     oreg = req.observer_region.scaled(sc.omega_c)
     blocks: list[LmiBlock] = []
@@ -120,6 +156,10 @@ def structured_problem(req, sc, eps: float, q_max: float):
             Gi[:, :2, :2] = N + np.swapaxes(N, 1, 2)
             Gi[:, 2, :2] = Gi[:, :2, 2] = ci * np.stack([q11, q12], axis=1)
             Gi[:, 2, 2] = -g
+            if ndo:  # −Γ_i − εI − σ_i e₂e₂ᵀ ⪰ 0
+                Mi = -Gi - eps * np.eye(3)
+                Mi[:, 1, 1] -= s
+                return [Mi]
             Mi = np.zeros((B, 4, 4))
             Mi[:, :3, :3] = -Gi - eps * np.eye(3)
             Mi[:, 1, 3] = Mi[:, 3, 1] = 1.0
@@ -130,7 +170,7 @@ def structured_problem(req, sc, eps: float, q_max: float):
 
         def ctrl_blocks(V):
             B, Q, N, _, _ = qn(V)
-            return [q_max * np.eye(2) - Q] + region_blocks(N, Q, creg, eps)
+            return [q_max * np.eye(2) - Q] + ([Q - eps * np.eye(2)] if ndo else []) + region_blocks(N, Q, creg, eps)
 
         blocks += _blocks_of(lay, ctrl, ctrl_blocks, "controller_region")
         if req.accel_limit is not None and np.isfinite(req.accel_limit[i]):
@@ -164,8 +204,12 @@ def structured_problem(req, sc, eps: float, q_max: float):
     Ee = np.diag(sc.T) @ req.E_e @ np.diag(sc.T)
     blocks += _blocks_of(lay, ["P", "c_e"], lambda V: [V["c_e"][:, :, None] * Ee - V["P"]], "initial_conditions")
     budget = ["c_e"] + (["c_z"] if track else [])
-    blocks += _blocks_of(lay, budget, lambda V: [(1.0 - V["c_e"][:, 0] - (np.sum(V["c_z"], axis=1) if track else 0))
+    total = 1.0 - C_D if ndo else 1.0
+    blocks += _blocks_of(lay, budget, lambda V: [(total - V["c_e"][:, 0] - (np.sum(V["c_z"], axis=1) if track else 0))
                                                  [:, None, None]], "initial_conditions")
+    if ndo:
+        blocks += _ndo_blocks(req, sc, lay, eps)
+        blocks += _blocks_of(lay, ["P"], lambda V: [V["P"] - eps * np.eye(n_e)], "positivity")
     # nonnegative variables (cvxpy's nonneg=True): g, s, c_e, c_z
     for nm in ("g", "s", "c_e") + (("c_z",) if track else ()):
         blocks += _blocks_of(lay, [nm], lambda V, nm=nm: [V[nm][:, k, None, None] for k in range(V[nm].shape[1])],
@@ -175,15 +219,60 @@ def structured_problem(req, sc, eps: float, q_max: float):
             P, We, s = V["P"], V["We"], V["s"]
             PA = P @ mdl.A_e - We @ mdl.C_e
             PAt = np.swapaxes(PA, 1, 2)
+            region = region_blocks(PAt, P, oreg, eps)
+            if ndo:
+                return [_ndo_performance(V, PA + PAt, mdl, _bzd(mdl, sc) / sc.d[:, None], eps)] + region
             Phi = PA + PAt + np.einsum("ka,bk,kc->bac", mdl.B_eps, s, mdl.B_eps)
-            return [-Phi - eps * np.eye(n_e)] + region_blocks(PAt, P, oreg, eps)
+            return [-Phi - eps * np.eye(n_e)] + region
 
-        blk = _blocks_of(lay, ["P", "We", "s"], obs, "observer_region")
+        blk = _blocks_of(lay, ["P", "We", "s"] + (["Qd"] if ndo else []), obs, "observer_region")
         blk[0].group = "performance"
         blocks += blk
     c = np.zeros(lay.m)
     c[lay.slots["g"][2]] = 1.0
     return lay, c, blocks
+
+
+def _ndo_performance(V, PAs, mdl, Bhat, eps: float) -> np.ndarray:
+    """−[[Ψ_k, H_kᵀ], [H_k, −diag(σ)]] (rows ε_e, ε_d, ε̇_c) for a stack of variables: the chapter 4
+    performance block of ``structured_problem`` (PAs = (PA_e − W_eC_e)^s; Bhat = B̂_k, the ε̇_c
+    rows of −B_zd,k: M̃◇_k⁻¹ in scaled units)."""
+    Qd, s = V["Qd"], V["s"]
+    B, n_e = PAs.shape[0], PAs.shape[1]
+    n_q = Qd.shape[1]
+    n = n_e + 2 * n_q
+    Ds = mdl.D_sym if mdl.D_sym is not None else np.zeros((n_q, n_q))
+    out = np.zeros((B, n, n))
+    e, d, c = slice(0, n_e), slice(n_e, n_e + n_q), slice(n_e + n_q, n)
+    out[:, e, e] = PAs
+    out[:, d, e] = mdl.D_x
+    out[:, e, d] = mdl.D_x.T
+    out[:, d, d] = -2 * Qd + Ds
+    H_d = -(Bhat @ Qd)  # B_zd,k Q_d on the ε̇_c rows
+    out[:, c, e] = mdl.B_eps
+    out[:, e, c] = mdl.B_eps.T
+    out[:, c, d] = H_d
+    out[:, d, c] = np.swapaxes(H_d, 1, 2)
+    out[:, c, c] = -s[:, :, None] * np.eye(n_q)
+    out[:, :n_e + n_q, :n_e + n_q] += eps * np.eye(n_e + n_q)
+    return -out
+
+
+def _ndo_blocks(req, sc, lay: Layout, eps: float) -> list[LmiBlock]:
+    """``_build``'s NDO constraints: Q̃_d ⪰ εI, and at every linearisation and sample j
+    2Q̃_d − (C_DẼ_d)⁻¹ ⪰ M̃◇_j (initial conditions) and αM̃◇_j ⪯ Q̃_d ⪯ rM̃◇_j (NDO poles)."""
+    from sms_cli.synthesis.lmi import _ed_inv
+
+    n_q = sc.models[0].n_q
+    Edinv = _ed_inv(req, sc)
+    ra = req.observer_region.scaled(sc.omega_c)
+    out = _blocks_of(lay, ["Qd"], lambda V: [V["Qd"] - eps * np.eye(n_q)], "positivity")
+    for m in sc.models + sc.samples:
+        Ms = (m.M + m.M.T) / 2
+        out += _blocks_of(lay, ["Qd"], lambda V, Ms=Ms: [2 * V["Qd"] - Edinv - Ms], "initial_conditions")
+        out += _blocks_of(lay, ["Qd"], lambda V, Ms=Ms: [V["Qd"] - ra.alpha * Ms, ra.radius * Ms - V["Qd"]],
+                          "observer_region")
+    return out
 
 
 def solve_structured(req, sc, eps: float, q_max: float, tol: float = 1e-8):

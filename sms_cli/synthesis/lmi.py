@@ -201,6 +201,7 @@ class _Scaled:
     s_m: float  # inertia scale of M̃ (chapter 4)
     d: np.ndarray  # actuator-coordinate scaling ε_c = d ε_c' (per actuator)
     c_s: float  # output weight scaling: C_z' = diag(d)/c_s, γ'² = γ̃²/c_s²
+    r_d: np.ndarray | None = None  # per-actuator ε_d scaling (chapter 4): ε_d = τ_c diag(r_d) ε̃_d
 
 
 def _scale(req: SynthesisRequest) -> _Scaled:
@@ -213,10 +214,20 @@ def _scale(req: SynthesisRequest) -> _Scaled:
     if len(T):
         T = T / np.exp(np.mean(np.log(T)))
     m_scale = 1.0
+    r_d = None
     if req.variant == "ndi_observer_ndo":
-        m_scale = float(np.max(np.diag(req.nominal[0].M)))
-    tau_c = omega_c**2 * m_scale
+        m_diag = np.diag(req.nominal[0].M)
+        m_scale = float(np.max(m_diag))
+        # ε_d per actuator in units of τ_c r_i, r_i = (M◇_ii/max M◇_jj)^½: the congruence
+        # ε_d = τ_c R ε̃_d (exact) gives M̃◇ a unit diagonal; with one torque scale for every
+        # actuator a 0.2 kg m² wheel next to a 400 kg rail gave M̃◇ entries 5e-4 to 1
+        r_d = np.sqrt(m_diag / m_scale)
     s_m = omega_c * m_scale
+    # τ_c² = s_m ω_c: the scaled NDO Lyapunov term ε̃_dᵀP̃_dM̃◇P̃_dε̃_d (P̃_d = Q̃_d⁻¹) is then
+    # exactly the SI ε_dᵀP_dM◇P_dε_d that ``verify`` certifies (in general it is s_mω_c/τ_c²
+    # times it: with τ_c = ω_c² max M◇_ii the problem solved was a differently weighted one, and
+    # verification failed on PULSAR-shaped problems)
+    tau_c = omega_c * np.sqrt(m_scale)
 
     def one(m: ErrorModel) -> ErrorModel:
         A = (m.A_e * T[None, :] / T[:, None]) / omega_c
@@ -224,9 +235,10 @@ def _scale(req: SynthesisRequest) -> _Scaled:
         B = m.B_eps * T[None, :] / omega_c**2
         M = Dx = Ds = None
         if req.variant == "ndi_observer_ndo":
-            M = omega_c * m.M / s_m
-            Dx = m.D_x * T[None, :] / tau_c
-            Ds = (m.D_sym if m.D_sym is not None else np.zeros_like(m.M)) / s_m
+            Ri = np.diag(1.0 / r_d)
+            M = omega_c * Ri @ m.M @ Ri / s_m
+            Dx = Ri @ m.D_x * T[None, :] / tau_c
+            Ds = Ri @ (m.D_sym if m.D_sym is not None else np.zeros_like(m.M)) @ Ri / s_m
         return ErrorModel(A, C, B, M, Dx, Ds, m.label)
 
     models = [one(m) for m in req.linearisations()]
@@ -238,7 +250,7 @@ def _scale(req: SynthesisRequest) -> _Scaled:
     d = np.where(rows > 0, rows, np.exp(np.mean(np.log(pos))) if len(pos) else 1.0)
     for m in models + samples:
         m.B_eps = m.B_eps / d[:, None]
-    return _Scaled(models, samples, omega_c, T, tau_c, s_m, d, float(np.max(d)))
+    return _Scaled(models, samples, omega_c, T, tau_c, s_m, d, float(np.max(d)), r_d)
 
 
 @dataclass
@@ -336,12 +348,6 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
     c_e = cp.Variable(nonneg=True)
     c_z = cp.Variable(n_q, nonneg=True)
 
-    Iq = np.eye(n_q)
-    Zqq = np.zeros((n_q, n_q))
-    Az = np.block([[Zqq, Iq], [Zqq, Zqq]])
-    Bz = np.vstack([Zqq, -Iq])
-    Cz = np.hstack([np.diag(sc.d / sc.c_s), Zqq])
-    AQBW = Az @ Q + Bz @ W  # per-actuator 2×2 blocks
     groups: dict[str, list] = {"performance": [], "controller_region": [], "observer_region": [],
                                "initial_conditions": [], "actuator_authority": [], "positivity": []}
 
@@ -372,8 +378,7 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
     if ndo:
         groups["positivity"].append(Qd >> EPS * np.eye(n_q))
         # P̃_dM̃P̃_d ⪯ c_d Ẽ_d  ⇐  2Q̃_d − (c_dẼ_d)⁻¹ ⪰ M̃_j  (convex substitute, see module doc)
-        Ed = C_D * req.E_d * sc.tau_c**2  # ε̃_d = ε_d/τ_c
-        Edinv = np.linalg.inv(Ed)
+        Edinv = _ed_inv(req, sc)
         ra = req.observer_region.scaled(sc.omega_c)
         for m in sc.models + sc.samples:
             Ms = (m.M + m.M.T) / 2
@@ -386,27 +391,10 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
     rows = 0
     for k, m in enumerate(sc.models):
         r1, r2 = rho[k]
-        Be = np.vstack([np.zeros((n_q, n_e)), m.B_eps])
         PA = P @ m.A_e - We @ m.C_e
         groups["observer_region"] += region_lmis(cp, PA.T, P, obs_region, EPS)
-        blocks_11 = AQBW + AQBW.T
-        blocks_22 = PA + PA.T
-        if req.relaxation == "thesis":
-            blocks_11 = blocks_11 + r2 * np.eye(2 * n_q)
-            blocks_22 = blocks_22 + (r1 + r2) * np.eye(n_e)
-        Zeq = np.zeros((n_e, n_q))
-        if not ndo:
-            rowsM = [[blocks_11, Be, Q @ Cz.T],
-                     [Be.T, blocks_22, Zeq],
-                     [Cz @ Q, Zeq.T, -g * Iq]]
-        else:
-            Bzd = np.vstack([Zqq, -_bzd(m, sc) / sc.d[:, None]])
-            D33 = -2 * Qd + m.D_sym
-            rowsM = [[blocks_11, Be, Bzd @ Qd, Q @ Cz.T],
-                     [Be.T, blocks_22, m.D_x.T, Zeq],
-                     [(Bzd @ Qd).T, m.D_x, D33, Zqq],
-                     [Cz @ Q, Zeq.T, Zqq, -g * Iq]]
-        Om = cp.bmat(rowsM)
+        extra = (r2, r1 + r2) if req.relaxation == "thesis" else (0.0, 0.0)
+        Om = cp.bmat(_theta_rows(m, sc, Q, W, PA, Qd, g, extra))
         n_om = Om.shape[0]
         if req.relaxation == "scaled" and (r1 > 0 or r2 > 0):
             # Petersen's lemma on the structured variation (``_Uncertainty``), multipliers λ, δ > 0:
@@ -439,10 +427,70 @@ def _build(req: SynthesisRequest, sc: _Scaled, rho, drop: frozenset[str] = froze
     return prob, var, groups, rows
 
 
+def _theta_rows(m: ErrorModel, sc: _Scaled, Q, W, PA, Qd, g, extra=(0.0, 0.0)) -> list[list]:
+    """The performance LMI Θ ≺ 0 of one linearisation as nested blocks (scaled units), rows
+    [z; ε_e; γ] (Kraiem 2022 (3.4x), chapter 3, Qd None) or [z; ε_e; ε_d; γ] ((4.27), chapter 4)::
+
+        [[(A_zQ + B_zW)^s, [0; B_ε], B_zdQ_d, QC_zᵀ], [*, (PA_e − W_eC_e)^s, D◇_xᵀ, 0],
+         [*, *, −2Q_d + D◇_sym, 0], [*, *, *, −γ̃²I]]
+
+    Q, W (2n_q×2n_q, n_q×2n_q), PA = PA_e − W_eC_e, Qd, g: cvxpy expressions (``_build``) or
+    numpy arrays (``theta_at``). extra: (ρ₂, ρ₁ + ρ₂) added to the two diagonal blocks
+    (relaxation 'thesis', Kraiem 2022 (3.52))."""
+    n_q, n_e = m.n_q, m.n_e
+    Iq, Zqq, Zeq = np.eye(n_q), np.zeros((n_q, n_q)), np.zeros((n_e, n_q))
+    Az = np.block([[Zqq, Iq], [Zqq, Zqq]])
+    Bz = np.vstack([Zqq, -Iq])
+    Cz = np.hstack([np.diag(sc.d / sc.c_s), Zqq])
+    AQBW = Az @ Q + Bz @ W
+    Be = np.vstack([np.zeros((n_q, n_e)), m.B_eps])
+    b11 = AQBW + AQBW.T + extra[0] * np.eye(2 * n_q)
+    b22 = PA + PA.T + extra[1] * np.eye(n_e)
+    if Qd is None:
+        return [[b11, Be, Q @ Cz.T],
+                [Be.T, b22, Zeq],
+                [Cz @ Q, Zeq.T, -g * Iq]]
+    BQ = np.vstack([Zqq, -_bzd(m, sc) / sc.d[:, None]]) @ Qd  # B_zd Q_d
+    return [[b11, Be, BQ, Q @ Cz.T],
+            [Be.T, b22, m.D_x.T, Zeq],
+            [BQ.T, m.D_x, -2 * Qd + m.D_sym, Zqq],
+            [Cz @ Q, Zeq.T, Zqq, -g * Iq]]
+
+
+def theta_at(req: SynthesisRequest, res: "LmiResult") -> list[np.ndarray]:
+    """Θ_k (``_theta_rows``, symmetrised, scaled units) at every linearisation of the request,
+    evaluated at the variables recovered from the returned gains and certificate (SI → scaled):
+    Q_i = S_iP_z,i⁻¹S_i, W_i = [K̃_p,i, K̃_v,i]Q_i, P = TP_εT, W_e = P T⁻¹L/ω_c, Q̃_d = R⁻¹Q_dR⁻¹/s_m,
+    γ̃² = ω_cγ²/c_s². The synthesis requires Θ_k ⪯ −EPS·I."""
+    sc = _scale(req)
+    n_q = req.nominal[0].n_q
+    Q = np.zeros((2 * n_q, 2 * n_q))
+    W = np.zeros((n_q, 2 * n_q))
+    for i in range(n_q):
+        S = np.diag([1.0, 1.0 / sc.omega_c]) / sc.d[i]
+        idx = [i, n_q + i]
+        Qi = S @ np.linalg.inv(res.P_z[np.ix_(idx, idx)]) @ S
+        Q[np.ix_(idx, idx)] = Qi
+        W[i, idx] = np.array([res.K_p[i] / sc.omega_c**2, res.K_v[i] / sc.omega_c]) @ Qi
+    Tm = np.diag(sc.T)
+    P = Tm @ res.P_e @ Tm
+    We = P @ np.diag(1.0 / sc.T) @ res.L / sc.omega_c
+    g = sc.omega_c * (res.gamma / sc.c_s) ** 2
+    Qd = None
+    if res.Q_d is not None:
+        Qd = res.Q_d / np.outer(sc.r_d, sc.r_d) / sc.s_m
+    out = []
+    for m in sc.models:
+        Th = np.block(_theta_rows(m, sc, Q, W, P @ m.A_e - We @ m.C_e, Qd, g))
+        out.append((Th + Th.T) / 2)
+    return out
+
+
 def _structured(req: SynthesisRequest) -> bool:
-    """The chapter 3 problem without ρ terms (relaxation 'none' or 'polytopic', or no samples) is
-    solved in the decoupled form of ``_build_structured``; the others in the full form of ``_build``."""
-    return req.variant == "ndi_observer" and (req.relaxation in ("none", "polytopic") or not req.samples)
+    """Problems without ρ terms (relaxation 'none' or 'polytopic', or no samples) go to the
+    dedicated solver: chapter 3 in the decoupled form of ``_build_structured``, chapter 4 in that
+    of ``direct.structured_problem`` (both exact); with ρ terms, cvxpy + Clarabel."""
+    return req.relaxation in ("none", "polytopic") or not req.samples
 
 
 def _build_structured(req: SynthesisRequest, sc: _Scaled, drop: frozenset[str] = frozenset(),
@@ -561,10 +609,16 @@ def _s(cp, x):
 
 
 def _bzd(m: ErrorModel, sc: _Scaled) -> np.ndarray:
-    """Scaled −B_zd lower block: M◇⁻¹ τ_c/ω_c² (ε̃_d = ε_d/τ_c, z̃ in scaled time).
+    """Scaled −B_zd lower block: M◇⁻¹ τ_c R/ω_c² (ε_d = τ_c R ε̃_d, z̃ in scaled time).
 
-    m.M is already the scaled M̃ = ω_c M/s_m, so M⁻¹ = M̃⁻¹ ω_c/s_m."""
-    return np.linalg.inv(m.M) * (sc.omega_c / sc.s_m) * sc.tau_c / sc.omega_c**2
+    m.M is already the scaled M̃ = ω_c R⁻¹MR⁻¹/s_m, so M⁻¹R = R⁻¹M̃⁻¹ ω_c/s_m."""
+    return (np.linalg.inv(m.M) / sc.r_d[:, None]) * (sc.omega_c / sc.s_m) * sc.tau_c / sc.omega_c**2
+
+
+def _ed_inv(req: SynthesisRequest, sc: _Scaled) -> np.ndarray:
+    """(c_dẼ_d)⁻¹ of the NDO initial-condition LMI, Ẽ_d = τ_c² R E_d R (ε_d = τ_c R ε̃_d)."""
+    R = np.diag(sc.r_d)
+    return np.linalg.inv(C_D * sc.tau_c**2 * R @ req.E_d @ R)
 
 
 def _builder(req, sc, rho, drop: frozenset[str] = frozenset(), feasibility: bool = False):
@@ -625,7 +679,7 @@ def synthesize(req: SynthesisRequest, diagnose: bool = True, solver: str = "auto
     sc = _scale(req)
     rho = _rho(sc, req.relaxation)
     if solver == "ipm" and not _structured(req):
-        raise ValueError("solver='ipm' handles the chapter 3 problem with relaxation 'none' or 'polytopic' only")
+        raise ValueError("solver='ipm' handles relaxation 'none' or 'polytopic' (or no samples) only")
     if solver in ("auto", "ipm") and _structured(req):
         res = _synthesize_ipm(req, sc, rho)
         if res is not None:
@@ -655,7 +709,8 @@ def _synthesize_ipm(req: SynthesisRequest, sc: _Scaled, rho) -> LmiResult | None
     if sres.status != "optimal" or sres.min_eig < -1e-9 or not np.isfinite(vals["g"]):
         return None
     m0 = sc.models[0]
-    return _extract(req, sc, rho, vals, "optimal", n_vars, dt, 3 * m0.n_q + m0.n_e,
+    rows = (4 if req.variant == "ndi_observer_ndo" else 3) * m0.n_q + m0.n_e  # the full form's Θ
+    return _extract(req, sc, rho, vals, "optimal", n_vars, dt, rows,
                     f"sms-ipm ({sres.iterations} iterations)")
 
 
@@ -680,7 +735,7 @@ def _extract(req, sc, rho, vals, status, n_vars, dt, rows, solver) -> LmiResult:
     Ti = np.diag(1.0 / sc.T)
     Qd = None
     if vals.get("Qd") is not None:
-        Qd = vals["Qd"] * sc.s_m
+        Qd = sc.s_m * (sc.r_d[:, None] * vals["Qd"] * sc.r_d[None, :])  # Q_d = s_m R Q̃_d R
     return LmiResult(
         K_p=Kp_s * sc.omega_c**2, K_v=Kv_s * sc.omega_c, L=sc.omega_c * Tm @ L_s,
         gamma=float(np.sqrt(max(float(vals["g"]), 0.0) / sc.omega_c) * sc.c_s), P_e=Ti @ P_s @ Ti, P_z=Pz, Q_d=Qd,

@@ -34,6 +34,12 @@ the multiplier step is shortened so that the certificate's residual cannot grow 
 jump to 1e2), and the run stops after four iterations without halving the gap, returning the
 best iterate (smallest gap among those with feasible residuals) with status 'failed'.
 
+When μ grows at five iterations in a row without the gap halving, the run is diverging (what an
+infeasible LMI does: the chapter 4 test data at the thesis size with too loose observer
+initial-error bounds ran for minutes with γ̃² → 1e5); it stops with status 'failed' and the
+multipliers' Farkas measure (``SdpResult.farkas``), which bounds from below the size of any
+feasible point.
+
 The solver does not certify infeasibility: it returns status 'optimal' only when the relative
 gap and the LMI (dual) residual are below ``tol`` and the multipliers' residual and objective
 mismatch below OPT_TOL; anything else is 'failed' (``gap`` says how close it came), and the
@@ -116,6 +122,9 @@ class SdpResult:
     dinf: float  # relative dual (LMI) residual
     min_eig: float  # smallest eigenvalue of F_j(x) / ‖F_j‖ over the blocks, at the returned x
     time: float
+    # runs that did not converge: ‖AX̂‖ of the last multipliers (``_farkas``): no point y of the
+    # LMIs (solver's scaled variables) has ‖y‖ < 1/farkas; inf when X proves nothing
+    farkas: float = np.inf
 
 
 class _Group:
@@ -286,6 +295,8 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     use_qr = method == "qr"
     best: tuple = (np.inf, np.inf, np.inf, 0, None)  # (gap, pinf, dinf, iteration, y) of the best iterate
     history: list[float] = []
+    mus: list[float] = []
+    farkas = np.inf
     tr = lambda a: np.transpose(a, (0, 2, 1))  # noqa: E731
     for it in range(1, max_iter + 1):
         AX = np.zeros(m)
@@ -315,9 +326,15 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         if dinf < tol and pinf < OPT_TOL and rel_obj < OPT_TOL and gap < best[0]:
             best = (gap, pinf, dinf, it, y.copy())
         history.append(gap)
+        mus.append(mu)
         # lack of progress (the Newton system has become too ill-conditioned even for the QR
         # route): stop; the best iterate so far is returned, with status 'failed' and its gap
         if len(history) > 4 and gap > 0.5 * history[-5] and best[4] is not None and gap < 1e-3:
+            break
+        # divergence: μ grew at each of the last five iterations without the gap halving. On an
+        # infeasible LMI (no y with every Z ⪰ 0) the multipliers' objective ⟨C, X⟩ runs to −∞ while
+        # AX stays bounded: X/|⟨C, X⟩| tends to a Farkas certificate (see ``SdpResult.farkas``)
+        if len(mus) > 5 and all(mus[-j] > mus[-j - 1] for j in range(1, 6)) and gap > 0.5 * history[-6]:
             break
         # NT scaling per block: X = L Lᵀ, Z = R Rᵀ, RᵀL = U S Vᵀ, G = L V S^-½ (GᵀZG = G⁻¹XG⁻ᵀ = S)
         try:
@@ -410,6 +427,8 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {'qr' if use_qr else 'chol'}")
         if max(ap, ad) < 1e-8:
             break
+    if status != "optimal":
+        farkas = _farkas(gs, X, m)
     if status != "optimal" and best[4] is not None:
         gap, pinf, dinf, _, y = best
     x = y * col
@@ -418,4 +437,17 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         Fx = b.F0 + np.einsum("k,kab->ab", x[b.idx], b.F)
         nrm = max(np.linalg.norm(b.F0), 1e-300) if len(b.idx) == 0 else max(np.linalg.norm(Fx), 1e-300)
         worst = min(worst, float(np.min(np.linalg.eigvalsh((Fx + Fx.T) / 2))) / nrm)
-    return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0)
+    return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0, farkas)
+
+
+def _farkas(gs: list[_Group], X: list[np.ndarray], m: int) -> float:
+    """‖AX̂‖ for X̂ = X/(−⟨C, X⟩) (X ⪰ 0, ⟨C, X⟩ < 0; inf otherwise), in the solver's scaled
+    variables. For every y with all Z_j(y) = C_j − Σ_i y_iA_ji ⪰ 0: 0 ≤ Σ_j⟨Z_j, X̂_j⟩ = −1 − yᵀAX̂,
+    so ‖y‖ ≥ 1/‖AX̂‖: a small value proves that no point of moderate size satisfies the LMIs."""
+    cx = sum(float(np.sum(g.C * X[q])) for q, g in enumerate(gs))
+    if not cx < 0 or not np.isfinite(cx):
+        return np.inf
+    AX = np.zeros(m)
+    for q, g in enumerate(gs):
+        np.add.at(AX, g.idx, g.apply(X[q]))
+    return float(np.linalg.norm(AX)) / -cx

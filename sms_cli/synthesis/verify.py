@@ -13,6 +13,8 @@ simulation (scipy) and compares it with the requirement:
   exact for a linear system) and a simulated ∫ε_cᵀε_c (matrix-exponential stepping, trapezoid)
   from that worst initial error, both below γ²;
 * ``actuator_authority``: the simulated peak feedback acceleration |K_i z(t)| below a_i;
+* ``full_lmi`` (chapter 4): the full (4.27) LMI Θ_k ⪯ −½EPS·I at every linearisation, at the
+  variables recovered from the gains (the solver may have seen an equivalent decoupled form);
 * ``flexible_damping``: the least damping ratio of the closed-loop observer poles is not
   below the least damping ratio of the open-loop oscillatory poles of A_e.
 
@@ -237,6 +239,26 @@ def certified_gamma(req: SynthesisRequest, res: LmiResult, models: list[ErrorMod
     return float(np.sqrt(g2)), ""
 
 
+FULL_LMI_MARGIN = 0.5  # Θ_k ⪯ −FULL_LMI_MARGIN·EPS·I required of the recovered variables
+
+
+def _full_lmi_check(req: SynthesisRequest, res: LmiResult) -> Check:
+    """Kraiem 2022 (4.27) in its full form (``lmi._theta_rows``: 4n_q + n_e rows per
+    linearisation, 103 for n_q = 14, n_e = 47) at the variables recovered from the returned gains
+    (``lmi.theta_at``), whatever form the solver saw: λ_max(Θ_k) ≤ −½EPS at every linearisation
+    (the synthesis asks for −EPS; half of it is left to the round trip through SI units)."""
+    from sms_cli.synthesis.lmi import EPS, theta_at
+
+    thetas = theta_at(req, res)
+    lam = [float(np.linalg.eigvalsh(t)[-1]) for t in thetas]
+    k = int(np.argmax(lam))
+    limit = -FULL_LMI_MARGIN * EPS
+    labels = [m.label for m in req.linearisations()]
+    return Check("full_lmi", lam[k] <= limit,
+                 f"largest eigenvalue of the full Θ ({thetas[k].shape[0]} rows) over {len(thetas)} linearisation(s): "
+                 f"{lam[k]:.3g} at '{labels[k]}' (required ≤ {limit:.3g}, scaled units)", value=lam[k], limit=limit)
+
+
 def verify_lmi(req: SynthesisRequest, res: LmiResult, include_samples: bool = True) -> Verification:
     """Run every check on the gains at every linearisation of the request."""
     from sms_cli.synthesis.sdp import single_thread_blas
@@ -279,6 +301,9 @@ def _verify_lmi(req: SynthesisRequest, res: LmiResult, include_samples: bool) ->
          f"including V(0) ≤ 1 on the initial-error set" if np.isfinite(g_cert)
          else f"AᵀP + PA is not negative definite at '{where}': the returned P proves nothing"),
         value=g_cert, limit=res.gamma))
+
+    if res.variant == "ndi_observer_ndo":
+        ver.checks.append(_full_lmi_check(req, res))
 
     # γ against the exact (Gramian) worst-case cost at every linearisation of the LMI; the
     # linear simulation (which also gives the peak feedback acceleration) runs at the first
