@@ -105,7 +105,7 @@ SIGNATURES = textwrap.dedent('''
                                              ("missions/astrobee_slew_backstepping", "compiled"),
                                              ("missions/caldera_eo", "compiled"),
                                              ("missions/chevallard_deploy_track", "compiled"),
-                                             ("tests/data/noisy_caldera_eo", "python, compiled plant"),
+                                             ("tests/data/noisy_caldera_eo", "compiled"),
                                              ("tests/data/noisy_caldera_s2_arm", "compiled"),
                                              ("tests/data/compiled_disturbances", "compiled"),
                                              ("tests/data/compiled_law_backstepping", "python"),
@@ -119,8 +119,8 @@ def test_the_run_compiles_nothing_after_the_warm_up(tmp_path, mission, engine):
     stops (astrobee_arm), its computed-torque law on the attitude-held model with wheels (caldera_s2_arm),
     the online inertia J(q) with an arm (astrobee_slew_backstepping), a smooth attitude profile (caldera_eo), a held
     base with joint stops and end-effector tracking (chevallard_deploy_track; its first phase: the held base),
-    disturbances (compiled_disturbances); the Python loop with the compiled plant, an arm law on its model, joint
-    stops, a recording and a noisy gyro (noisy_caldera_eo: its flexible panel keeps it off the compiled loop); the
+    disturbances (compiled_disturbances); the compiled loop with a flexible panel, an arm law on its augmented
+    model, joint stops, a recording and a noisy gyro (noisy_caldera_eo); the
     compiled loop with noisy, biased sensors (noisy_caldera_s2_arm); the Python loop running an attitude law's kernels, with the
     SystemModel's online body; the Python loop running a momentum law's kernels, the law and its W; the compiled loop
     running a momentum law, its W each step and at each phase start; with real thrusters, the law's quantities at the

@@ -49,6 +49,9 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
         groups.append(([recording.warm_call()] if recording else []) + [warm_call()])
         if loop_tree is not None and recording and sm.wheels and not shape_invariant(sm):
             groups[-1].append(recording.locked_warm_call())  # μ of the compiled loop's samples (RecordBuffer.write)
+        if loop_tree is not None and recording and sm.wheels and sm.n_modes:  # μ with modes (runner._modal_record_momenta)
+            groups[-1].append(KernelCall("sms_cli.sim.compiled.momentum_control:locked_velocities_of", (
+                np.eye(sm.nx)[None].copy(), np.zeros((1, sm.nx)), np.empty((1, 3))), cost=1.0))
         if loop is not None and recording and any(p.base_mode == "fixed" for p in loop.spec.phases):
             groups[-1].append(held_reactions_call(sm, loop_tree))  # /base/reaction of the compiled loop's samples
         if loop is not None and recording and loop.spec.disturbances:  # their /base/wrench
