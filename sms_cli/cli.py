@@ -27,7 +27,7 @@ from sms_cli.errors import (
     EXIT_REQUIREMENTS,
     SmsError,
 )
-from sms_cli.failures import failure
+from sms_cli.failures import failure, interrupted
 from sms_cli.outputs import Output
 
 EXIT_CODES_HELP = (
@@ -129,6 +129,9 @@ def _guarded(fn: Callable[[], int | None], outputs: Sequence[Output]) -> int:
     except typer.Exit:
         raise
     except Exception as exc:  # noqa: BLE001 - the contract is: never a raw traceback
+        if interrupted(exc):  # an interrupt Python wrapped (failures.interrupted)
+            err("interrupted")
+            return EXIT_INTERRUPTED
         if _state["debug"]:
             raise
         code, message = failure(exc, outputs)

@@ -12,6 +12,19 @@ from sms_cli.errors import EXIT_INTERNAL, EXIT_NUMERICAL, SmsError
 _NUMERIC = {"LinAlgError", "FloatingPointError"}
 
 
+def interrupted(exc: BaseException) -> bool:
+    """The exception is, or was caused by, an interrupt (SIGINT/SIGTERM as ``KeyboardInterrupt``). Python
+    wraps an interrupt that lands while a class is being created, e.g. during a module's first import
+    (``__set_name__`` of a dataclass field), in a RuntimeError whose cause is the interrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def failure(exc: BaseException, outputs: Sequence = ()) -> tuple[int, str]:
     """(exit code, message without the 'error: ' prefix) of an exception a command did not handle."""
     if isinstance(exc, SmsError):

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Callable
 
 from sms_cli.errors import EXIT_OK, EXIT_REQUIREMENTS, SmsError
-from sms_cli.failures import failure
+from sms_cli.failures import failure, interrupted
 from sms_cli.results import ResultsDir
 from sms_cli.run.stages import STAGES, call_stage
 
@@ -142,6 +142,10 @@ def _run(loaded, mission_path: Path, out: Path, rd: ResultsDir, progress, report
             save_run("interrupted")
             raise
         except Exception as exc:  # noqa: BLE001 - reported per stage, the run goes on
+            if interrupted(exc):  # an interrupt Python wrapped while importing (failures.interrupted)
+                summary.stages.append(StageOutcome(stage.name, "interrupted", time.perf_counter() - t0, 130))
+                save_run("interrupted")
+                raise KeyboardInterrupt from exc
             code, msg = _failure(exc, debug)
             outcome = StageOutcome(stage.name, "failed", time.perf_counter() - t0, code, msg)
             failed.add(stage.name)
