@@ -31,6 +31,17 @@ def unsupported_reason(sm: SystemModel) -> str | None:
     return None
 
 
+def modal_arrays(sm: SystemModel) -> tuple:
+    """The base-mounted modes as the compiled steps take them: B (n_η×6, ``SystemModel.base_modal_coupling``),
+    Bᵀ, BᵀB, −Ω² and −2ζΩ (rad/s); empty arrays (n_η = 0) for a rigid model."""
+    ne = sm.n_modes
+    B = sm.base_modal_coupling if ne else np.zeros((0, 6))
+    omega = np.concatenate([a.omega for a in sm.appendages]) if ne else np.zeros(0)
+    zeta = np.concatenate([a.zeta for a in sm.appendages]) if ne else np.zeros(0)
+    return (np.ascontiguousarray(B, dtype=float), np.ascontiguousarray(B.T, dtype=float),
+            np.ascontiguousarray(B.T @ B, dtype=float), -(omega**2), -2.0 * zeta * omega)
+
+
 class CompiledPlant:
     """RKMK4 steps of ``sm`` (see the module docstring). Call ``refresh()`` after a payload is
     attached or released (the body inertias change)."""
@@ -39,17 +50,13 @@ class CompiledPlant:
         from sms_cli.sim.compiled.dynamics import workspace
 
         self.sm = sm
-        ne = sm.n_modes
-        B = sm.base_modal_coupling if ne else np.zeros((0, 6))
-        omega = np.concatenate([a.omega for a in sm.appendages]) if ne else np.zeros(0)
-        zeta = np.concatenate([a.zeta for a in sm.appendages]) if ne else np.zeros(0)
-        self._modal = (np.ascontiguousarray(B.T), np.ascontiguousarray(B.T @ B), -(omega**2), -2.0 * zeta * omega)
+        self._modal = modal_arrays(sm)[1:]
         sp = sm.springs
         self._springs = (np.array([x.v_index for x in sp], dtype=np.int64), np.array([x.q_index for x in sp], dtype=np.int64),
                          np.array([x.stiffness for x in sp], float), np.array([x.damping for x in sp], float),
                          np.array([x.rest for x in sp], float))
         self.refresh()
-        self._ws = workspace(self._tree[0].size, sm.nq, sm.nv, ne)
+        self._ws = workspace(self._tree[0].size, sm.nq, sm.nv, sm.n_modes)
 
     def refresh(self) -> None:
         """Re-read the model (body inertias change when payloads are attached or released)."""

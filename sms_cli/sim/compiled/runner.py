@@ -104,12 +104,9 @@ class CompiledSimulation:
         self.n_sub = int(round(1.0 / spec.control_rate / spec.dt))
         self.chunk_ticks = max(1, chunk_steps // self.n_sub)
         self.kinematics = SampleKinematics(sm)
-        ne = sm.n_modes  # the base-mounted modes: B (n_η×6), Bᵀ, BᵀB, −Ω², −2ζΩ (the CompiledPlant's)
-        B = sm.base_modal_coupling if ne else np.zeros((0, 6))
-        omega = np.concatenate([a.omega for a in sm.appendages]) if ne else np.zeros(0)
-        zeta = np.concatenate([a.zeta for a in sm.appendages]) if ne else np.zeros(0)
-        self.modal = (np.ascontiguousarray(B, dtype=float), np.ascontiguousarray(B.T, dtype=float),
-                      np.ascontiguousarray(B.T @ B, dtype=float), -(omega**2), -2.0 * zeta * omega)
+        from sms_cli.sim.compiled.plant import modal_arrays
+
+        self.modal = modal_arrays(sm)  # the base-mounted modes: B, Bᵀ, BᵀB, −Ω², −2ζΩ
         self.buffer = RecordBuffer(sm, recorder, kinematics=self.kinematics) if recorder is not None else None
         self.record_wrench = records_base_wrench(spec)  # thrusters, disturbances: /base/wrench (sms_cli.sim.timing)
         from sms_cli.sim.compiled.disturbances import disturbance_table
