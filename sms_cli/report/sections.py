@@ -457,7 +457,28 @@ SIM_CAPTIONS = {
                          "quantisation), the total thrust and the propellant used (as Vicariotto 2023 Figs. 4.4d, 4.5d).",
     "sim_momentum.png": "Locked velocity μ = ω + Λθ̇ (Vicariotto 2023 (4.8)) and the attitude law's Lyapunov function "
                         "W: whether the law dissipates what it should.",
+    "sim_torque_split.png": "The NDI command split as Kraiem 2022 plots it (Figs. 3.15, 4.28): the feedback torque M◇v, "
+                            "the linearising torque (the actuators' own motion) and the disturbance torque (the "
+                            "estimated flexible and base states, minus the disturbance observer's estimate).",
 }
+
+
+def _validation_table(phases: list[dict]) -> Table | None:
+    """Kraiem 2022's validation measures per phase where the NDI law ran: rate tracking (3.67) and the command
+    split's peak ratios (median over each group's actuators; ``sim.metrics.torque_split_metrics``)."""
+    rows = []
+    for i, p in enumerate(phases):
+        ts = p.get("torque_split") or {}
+        if not ts and p.get("joint_rate_error_rel_max") is None:
+            continue
+        rows.append([p.get("name", str(i)), fmt(p.get("joint_rate_error_rel_max")), fmt(p.get("wheel_rate_error_rel_max")),
+                     fmt(_get(ts, "arm.linearising_to_feedback")), fmt(_get(ts, "arm.disturbance_to_linearising")),
+                     fmt(_get(ts, "wheels.linearising_to_feedback")), fmt(_get(ts, "wheels.disturbance_to_linearising"))])
+    if not rows:
+        return None
+    h = ["phase", "(3.67) joints [–]", "(3.67) wheels [–]", "arm lin./feedback [–]", "arm dist./lin. [–]",
+         "wheels lin./feedback [–]", "wheels dist./lin. [–]"]
+    return Table("Rate tracking (Kraiem 2022 (3.67)) and the NDI command split (peak ratios)", h, rows, _num_cols(h))
 
 
 def _get(d: dict, dotted: str) -> Any:
@@ -492,6 +513,9 @@ def simulation_section(sim: dict[str, Any], folder: Path, wheels: list[dict], ex
                                       fmt(p.get("settling_time_s")), fmt(_get(p, "end_effector_error_m.max")),
                                       fmt(p["wheel_speed_peak_rad_s"] * RPM) if p.get("wheel_speed_peak_rad_s") is not None else "—",
                                       fmt(p.get("saturation_time_s"))] for i, p in enumerate(phases)], _num_cols(h, 2)))
+        validation = _validation_table(phases)
+        if validation is not None:
+            s.add(validation)
     cons = sim.get("conservation", {})
     if cons:
         s.add(Table("Conservation checks (momentum without external forces; energy change)", ["quantity", "value", "unit"],

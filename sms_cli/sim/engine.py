@@ -513,7 +513,7 @@ class Simulation:
         if self.plant is not None and (phase.attach or phase.detach):
             self.plant.refresh()
         if self.ndi is not None and (phase.attach or phase.detach):
-            self.ndi.model_changed()
+            self.ndi.model_changed(self.sm)
         if self.rec is not None:
             self._event(t, "phase", phase_event(phase))
 
@@ -579,6 +579,9 @@ class Simulation:
             tr.joint_rate.append(s.v[sm.idx.arm].copy())
             if self.ndi is not None and sm.wheels:  # the law's desired wheel rates (attitude hold included)
                 tr.wheel_rate_ref.append(self.ndi.wheel_rate_ref.copy())
+        if self.ndi is not None:  # the command's feedback, linearising and disturbance parts (zero where the law is off)
+            on = self.spec.phases[ip].base_mode not in ("free-floating", "fixed")
+            tr.ndi_torque_split.append(self.ndi.split.ravel().copy() if on else np.zeros(self.ndi.split.size))
         tr.modal_peak.append(float(np.max(np.abs(s.eta))) if s.eta.size else 0.0)
         tr.joint_stop_time.append(np.zeros(len(sm.arm)))  # the tick's time on stop: set after its plant steps
         tr.joint_stop_penetration.append(arm_penetration(self._stop_table, len(sm.arm), s.q))

@@ -33,6 +33,9 @@ class Trace:
     joint_rate_ref: list[np.ndarray] = field(default_factory=list)
     joint_rate: list[np.ndarray] = field(default_factory=list)
     wheel_rate_ref: list[np.ndarray] = field(default_factory=list)
+    # the NDI law's command split (Kraiem 2022 Fig. 3.15, 4.28): [feedback; linearising; disturbance] × actuators
+    # (wheels then arm), flattened row by row (ndi_law.torque_split)
+    ndi_torque_split: list[np.ndarray] = field(default_factory=list)
     # joint stops, per arm joint: s spent on a stop during the tick [t, t + 1/control_rate), and the largest
     # penetration beyond the URDF range in that tick (rad or m; also without the stops: how far past)
     joint_stop_time: list[np.ndarray] = field(default_factory=list)
@@ -60,7 +63,7 @@ class Trace:
             "segment": np.array(self.segment, dtype=int),
             "base_torque": np.array(self.base_torque) if self.base_torque else np.zeros((len(self.t), 3)),
             **({"base_motion": np.array(self.base_motion)} if self.t and len(self.base_motion) == len(self.t) else {}),
-            **{k: np.array(getattr(self, k)) for k in ("joint_rate_ref", "joint_rate", "wheel_rate_ref", "thruster_commanded",
+            **{k: np.array(getattr(self, k)) for k in ("joint_rate_ref", "joint_rate", "wheel_rate_ref", "ndi_torque_split", "thruster_commanded",
                                                         "thruster_delivered", "thrust_total", "propellant_used",
                                                         "locked", "lyapunov")
                if len(getattr(self, k)) == len(self.t) and self.t},
@@ -136,6 +139,35 @@ def summarize(a: dict[str, np.ndarray], mask: np.ndarray, band: float, dt_contro
     mp = a["modal_peak"][mask]
     out["modal_amplitude_peak"] = float(np.max(mp)) if mp.size else None
     out.update(joint_stop_metrics(a, mask, arm_names))
+    if "ndi_torque_split" in a:
+        out["torque_split"] = torque_split_metrics(a["ndi_torque_split"][mask], a["wheel_speed"].shape[1])
+    return out
+
+
+def torque_split_metrics(split: np.ndarray, n_wheels: int) -> dict | None:
+    """Kraiem 2022's torque decomposition (Fig. 3.15, 4.28) of the NDI command over samples × [feedback; linearising;
+    disturbance] × actuators (wheels then arm; ``ndi_law.torque_split``): per group (wheels, arm), each actuator's peak
+    |part| (N m, or N for a prismatic joint) and the median over the group's actuators of the peak ratios
+    linearising/feedback and disturbance/linearising. An actuator whose denominator peak is below 1e-8 of the group's
+    largest feedback peak is left out (round-off: a wheel on the base has no linearising torque about its axis, and
+    its computed one is ~1e-12 N m); None when all are. None where the law never ran."""
+    if split.size == 0 or not np.any(split):
+        return None
+    na = split.shape[1] // 3
+    peaks = np.max(np.abs(split.reshape(split.shape[0], 3, na)), axis=0)  # (3, na)
+
+    def ratio(num, den, scale):
+        ok = den > 1e-8 * scale
+        return float(np.median(num[ok] / den[ok])) if np.any(ok) else None
+
+    out = {}
+    for group, cols in (("wheels", slice(0, n_wheels)), ("arm", slice(n_wheels, na))):
+        fb, lin, dist = peaks[0, cols], peaks[1, cols], peaks[2, cols]
+        if fb.size == 0:
+            continue
+        out[group] = {"feedback_peak": fb.tolist(), "linearising_peak": lin.tolist(), "disturbance_peak": dist.tolist(),
+                      "linearising_to_feedback": ratio(lin, fb, fb.max()),
+                      "disturbance_to_linearising": ratio(dist, lin, fb.max())}
     return out
 
 

@@ -16,7 +16,7 @@ RPM = 60 / (2 * math.pi)
 @S.styled
 def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> list[Path]:
     """Attitude error, wheel speeds/torques, joint tracking/torques, modal amplitudes, thrusters (ideal vs
-    delivered wrench, thrust, propellant), locked velocity μ and Lyapunov W vs time."""
+    delivered wrench, thrust, propellant), locked velocity μ and Lyapunov W, the NDI command's split vs time."""
     t = trace["t"]
     files: list[Path] = []
     if t.size == 0:
@@ -91,6 +91,22 @@ def plot_simulation(trace: dict, sm, phase_names: list[str], out_dir: Path) -> l
         axes[1].set(ylabel="W (J)")
         fig.legend(*axes[0].get_legend_handles_labels(), loc="outside right upper")
         finish(fig, list(axes), "sim_momentum.png")
+    if "ndi_torque_split" in trace and np.any(trace["ndi_torque_split"]):  # Kraiem 2022 Figs. 3.15, 4.28
+        na = trace["ndi_torque_split"].shape[1] // 3
+        split = np.abs(trace["ndi_torque_split"].reshape(-1, 3, na))
+        groups = [(g, cols) for g, cols in (("wheels", slice(0, len(sm.wheels))), ("arm", slice(len(sm.wheels), na)))
+                  if cols.stop > cols.start]
+        fig, axes = S.new(S.FULL_PX, 210 * len(groups) + 60, len(groups), 1, sharex=True)
+        axes = np.atleast_1d(axes)
+        for ax, (group, cols) in zip(axes, groups):
+            for c, label in enumerate(("feedback M◇v", "linearising n(x_e = 0)", "disturbance n − n(0) − τ̂_d")):
+                y = split[:, c, cols].max(axis=1)
+                ax.plot(t, np.where(y > 0, y, np.nan), lw=1.1, color=f"C{c}", label=label)
+            ax.set_yscale("log")
+            ax.set(ylabel=f"{group}: max |τ| (N m or N)")
+        axes[0].set_title("NDI command split (largest over the actuators of each group; log scale)")
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside right upper")
+        finish(fig, list(axes), "sim_torque_split.png")
     ee = trace["ee_err"]
     if ee.size and np.any(np.isfinite(ee)):
         fig, ax = S.new(S.FULL_PX, 260)

@@ -48,6 +48,12 @@ def format_simulation(sec: dict) -> str:
         j, w = p.get("joint_rate_error_rel_max"), p.get("wheel_rate_error_rel_max")
         if j is not None or w is not None:
             lines.append(f"  {p['name']}: rate tracking (Kraiem 2022 (3.67)) joints {_f(j, '.2e')}, wheels {_f(w, '.2e')}")
+    for p in sec["phases"]:
+        arm = (p.get("torque_split") or {}).get("arm")
+        if arm:
+            lines.append(f"  {p['name']}: arm command split (peak ratios) linearising/feedback "
+                         f"{_f(arm['linearising_to_feedback'], '.2g')}, disturbance/linearising "
+                         f"{_f(arm['disturbance_to_linearising'], '.2g')}")
     auto = [m for m in sec.get("moves") or [] if m.get("given_s") is None]
     if auto:
         lines.append("moves sized from the actuator authority: " + ", ".join(

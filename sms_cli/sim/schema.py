@@ -9,7 +9,7 @@ from annotated_types import Gt
 from pydantic import Field, model_validator
 
 from sms_cli.mission.base import InertiaTensor, Position3, Rotation3, StrictModel, Vector3, vector
-from sms_cli.mission.units import Angle, AngularRate, Force, Frequency, Mass, Time, Torque
+from sms_cli.mission.units import Angle, AngularRate, Dimensionless, Force, Frequency, Mass, Time, Torque
 from sms_cli.sim.laws.schema import ArmLawSpec, AttitudeLawSpec, ResolvedRateSpec
 
 BaseMode = Literal["free-floating", "rotation-free-floating", "free-flying", "fixed"]
@@ -230,6 +230,29 @@ class DivergenceSpec(StrictModel):
     max_modal_amplitude: float = 1e3
 
 
+class ModelErrorsSpec(StrictModel):
+    """Errors of the law's model against the plant (Kraiem 2022 §4.3 validates its robust law with ±3 % on the
+    bodies' inertias, ±10 % on their centres of mass and +10 % on the flexible parameters): the law inverts and
+    observes a copy of the model with these errors (``sms_cli.model.model_errors``); the plant is the URDF's."""
+
+    inertia: Dimensionless = Field(0.0, ge=0, lt=1, description="relative error of every body's rotational inertia "
+                                   "about its CoM, sign drawn per body from seed (0.03: ±3 %)")
+    com: Dimensionless = Field(0.0, ge=0, lt=1, description="relative error of every body's CoM position in its joint "
+                               "frame, sign drawn per body from seed (0.1: ±10 %)")
+    modal_frequency: Dimensionless = Field(0.0, gt=-1, lt=1, description="relative error of every appendage mode's "
+                                           "frequency, signed (0.1: the law's modes 10 % above the plant's)")
+    seed: int = Field(0, description="seed of the per-body signs")
+
+
+class KalmanSpec(StrictModel):
+    """Weights of the steady-state Kalman observer gain (``sms_cli.sim.laws.ndi_gains.kalman_gain``): process noise
+    intensity w on every state of x_e = [f; ω0; ḟ] and measurement noise intensity v on each gyro axis (their ratio sets
+    the observer's bandwidth: a larger w/v, a faster observer)."""
+
+    process: float = Field(1e-2, gt=0, description="w: process noise intensity (W = w I)")
+    measurement: float = Field(1e-4, gt=0, description="v: gyro noise intensity ((rad/s)² s; V = v I)")
+
+
 class NdiSpec(StrictModel):
     """Kraiem 2022 NDI of the wheels + arm with the flexible/base-state observer (replaces the attitude and
     arm laws). Gains from ``gains.yaml`` (written by ``sms synthesize``, found in the results folder or
@@ -238,7 +261,10 @@ class NdiSpec(StrictModel):
     gains: str | None = Field(None, description="gains.yaml path (default: <results>/gains.yaml when kp/kv/L are absent)")
     kp: list[float] | float | None = Field(None, description="1/s² per actuator (wheels, then arm)")
     kv: list[float] | float | None = Field(None, description="1/s per actuator")
-    L: list[list[float]] | None = Field(None, description="observer gain (2 n_f + 3) × 3 for x = [f; ω0; ḟ], y = ω0")
+    L: list[list[float]] | Literal["kalman"] | None = Field(
+        None, description="observer gain (2 n_f + 3) × 3 for x = [f; ω0; ḟ], y = ω0, or 'kalman': the steady-state "
+                          "Kalman filter of the law's model at rest at the initial configuration (weights in kalman)")
+    kalman: KalmanSpec = Field(default_factory=lambda: KalmanSpec(), description="weights of L: kalman")
     attitude_gain: float = Field(0.05, gt=0, description="k_att (1/s): base rate command ω_des = ω_ref − k_att θ_e")
     wheel_feedforward: bool = Field(
         True, description="wheel accelerations that keep the base from rotating under the commanded arm acceleration "
@@ -248,6 +274,11 @@ class NdiSpec(StrictModel):
         False, description="Kraiem 2022 ch. 4's nonlinear disturbance observer (4.12): the law subtracts its estimate "
                            "τ̂_d of the actuators' disturbance torques (4.21); gain L_d = Q_d M◇⁻¹ with Q_d from "
                            "gains.yaml (sms synthesize with lmi.variant: ndi_observer_ndo) or given here")
+    model_errors: ModelErrorsSpec | None = Field(
+        None, description="the law's model differs from the plant by these errors (default: the plant's own model)")
+    ndo_bandwidth: AngularRate | None = Field(
+        None, gt=0, description="instead of Q_d: Q_d = β M◇ at the initial configuration (the law's model), so that "
+                                "every actuator's disturbance estimate converges at β (1/s)")
     Q_d: list[list[float]] | None = Field(None, description="NDO gain matrix (N m s per rad, actuators × actuators: "
                                                             "wheels, then arm); default: gains.yaml's observer.Q_d")
 

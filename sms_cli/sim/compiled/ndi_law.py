@@ -11,6 +11,7 @@ Units SI (rad, m, sqrt(kg) m for η).
   synthesis use it too.
 - ``ndi_velocity``, ``ndi_command``: the estimated velocity and the actuator torques (wheels then arm)
   of one control period; the caller evaluates the bias and internal forces r in between.
+- ``rigid_velocity``, ``torque_split``: the torques' feedback, linearising and disturbance parts.
 - ``ndi_observe``: the exact ZOH propagation of the observer over the period (discretisation refreshed
   when the arm moved by more than ``refresh`` or the model changed).
 - ``ndo_estimate``, ``ndo_refresh``: the disturbance observer of Kraiem 2022 ch. 4 (4.12), its estimate τ̂_d
@@ -216,6 +217,22 @@ def observer_discretisation(A_L, T, Phi, Gamma):
 
 
 @njit(**JIT)
+def _zero_momentum_velocity(M, lin, ang, act, flex, omega, v, fdot, x):
+    """x = [v_lin; ω0; q̇_a; ḟ] (nx): ω0 = omega, q̇_a from v (nv), ḟ = fdot, v_lin from zero linear momentum."""
+    x[:] = 0.0
+    for a in range(ang.shape[0]):
+        x[ang[a]] = omega[a]
+    for i in range(act.shape[0]):
+        x[act[i]] = v[act[i]]
+    for i in range(flex.shape[0]):
+        x[flex[i]] = fdot[i]
+    rhs = _sub(M, lin, np.arange(M.shape[0])) @ x
+    sol = np.linalg.solve(_sub(M, lin, lin), rhs)
+    for a in range(lin.shape[0]):
+        x[lin[a]] = -sol[a]
+
+
+@njit(**JIT)
 def ndi_velocity(M, lin, ang, act, flex, omega, v, x_hat, flags, x):
     """x̂ = [v_lin; ω0; q̇_a; ḟ̂] (nx) into x: ω0 and q̇_a measured (v: the velocity, nv), ḟ̂ from the
     observer, v_lin from zero linear momentum. The first call seeds the observer's ω0 with the gyro."""
@@ -224,17 +241,30 @@ def ndi_velocity(M, lin, ang, act, flex, omega, v, x_hat, flags, x):
         for a in range(3):
             x_hat[n_f + a] = omega[a]
         flags[STARTED] = 1
-    x[:] = 0.0
-    for a in range(ang.shape[0]):
-        x[ang[a]] = omega[a]
+    _zero_momentum_velocity(M, lin, ang, act, flex, omega, v, x_hat[n_f + 3:], x)
+
+
+@njit(**JIT)
+def rigid_velocity(M, lin, ang, act, flex, v, x):
+    """The velocity of the actuators' motion alone (nx) into x: q̇_a from v (nv), ω0 = 0, ḟ = 0 (x_e = 0), v_lin
+    from zero linear momentum; the state at which ``torque_split``'s linearising term is evaluated."""
+    _zero_momentum_velocity(M, lin, ang, act, flex, np.zeros(ang.shape[0]), v, np.zeros(flex.shape[0]), x)
+
+
+@njit(**JIT)
+def torque_split(M, r, r_lin, lin, ang, act, flex, tau_hat, ndo_on, tau, split):
+    """The law's torques τ (wheels then arm, N m or N) split as Kraiem 2022 plots them (Fig. 3.15, 4.28), into
+    ``split`` (3 × na): row 1 the linearising torque n(x_e = 0) (r_lin: r at ``rigid_velocity``, η = η̇ = 0: the
+    nonlinear counterpart of D◇ q̇), row 2 the disturbance torque n − n(x_e = 0) − τ̂_d (the estimated flexible
+    and base states, D◇_x x̂_e, and the disturbance observer's estimate), row 0 the feedback torque, the rest:
+    τ − n + τ̂_d (= M◇ v when no wheel saturates). n = r_a − M_au M_uu⁻¹ r_u (``actuator_dynamics``)."""
+    _, n_term, _ = actuator_dynamics(M, r, lin, ang, act, flex)
+    _, n_lin, _ = actuator_dynamics(M, r_lin, lin, ang, act, flex)
     for i in range(act.shape[0]):
-        x[act[i]] = v[act[i]]
-    for i in range(n_f):
-        x[flex[i]] = x_hat[n_f + 3 + i]
-    rhs = _sub(M, lin, np.arange(M.shape[0])) @ x
-    sol = np.linalg.solve(_sub(M, lin, lin), rhs)
-    for a in range(lin.shape[0]):
-        x[lin[a]] = -sol[a]
+        d = tau_hat[i] if ndo_on else 0.0
+        split[1, i] = n_lin[i]
+        split[2, i] = n_term[i] - n_lin[i] - d
+        split[0, i] = tau[i] - n_term[i] + d
 
 
 @njit(**JIT)

@@ -26,7 +26,7 @@ from sms_cli.sim.compiled.loop import (ARM_BLOCKS, ARM_ERR, ARM_RATE, ARM_RATE_R
                                        effective_wheel_inertia)
 from sms_cli.sim.compiled.modal import modal_momentum_energy, modal_sample_momenta  # noqa: F401  (re-exported)
 from sms_cli.sim.compiled.ndi_law import (SATURATED, augmented_bias, augmented_mass, ndi_command, ndi_observe,
-                                          ndi_velocity, ndo_estimate, ndo_refresh)
+                                          ndi_velocity, ndo_estimate, ndo_refresh, rigid_velocity, torque_split)
 from sms_cli.sim.compiled.sensors import measure_state
 from sms_cli.sim.compiled.stops import stop_step
 
@@ -36,6 +36,9 @@ def run_ticks_ndi(
     parent, kind, axis, place_R, place_p, inertia, leaf_IA, mass, com, armature, idx_q, idx_v,
     # base-mounted modes: B (n_η×6), Bᵀ, BᵀB, −Ω², −2ζΩ (CompiledPlant)
     modal_B, modal_Bt, modal_BtB, neg_omega2, neg_2zo,
+    # the law's model (NdiObserver.model_arrays; the plant's own arrays without model errors): the tree's body
+    # inertias, B, −Ω², −2ζΩ
+    law_inertia, law_B, law_neg_omega2, law_neg_2zo,
     # wheels
     wheel_v, max_torque, max_speed, coulomb, viscous,
     # NDI law (ndi_law; NdiObserver.kernel_args) on this phase or not, and its state (in/out)
@@ -56,7 +59,7 @@ def run_ticks_ndi(
     # state, in/out
     q, v, eta, etadot, eff_inertia, settled_since,
     # outputs per control tick
-    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_mom, tr_energy, tr_arm, tr_wrr, tr_modal,
+    tr_t, tr_err, tr_ws, tr_tw, tr_sat, tr_mom, tr_energy, tr_arm, tr_wrr, tr_modal, tr_split,
     # outputs per plant step (state after the step and the wheel torque applied during it)
     st_t, st_q, st_v, st_eta, st_etadot, st_tw,
     # joint-stop events (stops.py rows) and their count
@@ -64,10 +67,12 @@ def run_ticks_ndi(
 ):
     """Advance up to ``n_ticks`` control periods from time t0; returns (ticks, steps, status) as
     ``loop.run_ticks`` (status also MODAL_LIMIT). Per tick: the NDI torques (wheels then arm, when
-    ``ndi_on``) from M and r at the estimated state (``augmented_mass``, ``ndi_velocity``,
+    ``ndi_on``) from the law's M and r (``law_*``: its model, with errors or the plant's) at the estimated state (``augmented_mass``, ``ndi_velocity``,
     ``augmented_bias``, ``ndi_command``; with ``ndo_on`` the disturbance estimate ``ndo_estimate`` subtracted),
     clipped to the wheel and joint limits, the observer propagated with them (``ndi_observe``, ``ndo_refresh``); the trace (``tr_arm`` blocks as ``run_ticks``, ``tr_wrr`` the law's desired
-    wheel rates, ``tr_modal`` max |η|, momenta and energy with the modal terms); then the plant sub-steps.
+    wheel rates, ``tr_modal`` max |η|, momenta and energy with the modal terms, ``tr_split`` the command's feedback,
+    linearising and disturbance parts, ``ndi_law.torque_split``, flattened; zero where the law is off); then the plant
+    sub-steps.
     Sensors (``sensed``): the law sees the measured state of each tick (``sensors.measure_state`` with the tick's
     row of ``sens_noise``: ω, the attitude, the arm's angles and rates), the trace and the plant the true one."""
     nv = v.shape[0]
@@ -96,6 +101,10 @@ def run_ticks_ndi(
     M = np.empty((nx, nx))
     r = np.empty(nx)
     r_cmd = np.empty(nx)
+    r_lin = np.empty(nx)
+    x_lin = np.empty(nx)
+    zero_e = np.zeros(ne)
+    split = np.zeros((3, na))
     qdot_a = np.empty(na)
     x = np.empty(nx)
     zero3 = np.zeros(3)
@@ -132,9 +141,9 @@ def run_ticks_ndi(
             q_arm[i] = qs[arm_q[i]]
             tau_m[i] = 0.0
         if ndi_on:
-            augmented_mass(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, modal_B, M)
+            augmented_mass(parent, kind, axis, law_inertia, armature, idx_v, R_rel, p_rel, law_B, M)
             ndi_velocity(M, lin, ang, act, flex, omega, vs, x_hat, flags, x)
-            augmented_bias(parent, kind, axis, inertia, idx_v, R_rel, p_rel, modal_B, neg_omega2, neg_2zo, x[:nv],
+            augmented_bias(parent, kind, axis, law_inertia, idx_v, R_rel, p_rel, law_B, law_neg_omega2, law_neg_2zo, x[:nv],
                            x_hat[n_f - ne:n_f], x[nv:], r)
             r_cmd[:] = r
             if ndo_on:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21)): n from r with r_a − τ̂_d
@@ -145,6 +154,10 @@ def run_ticks_ndi(
                     r_cmd[act[i]] -= tau_hat[i]
             ndi_command(M, r_cmd, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, qs[3:7], omega, vs, q_arm,
                         q_ref, zero3, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau_a)
+            rigid_velocity(M, lin, ang, act, flex, vs, x_lin)
+            augmented_bias(parent, kind, axis, law_inertia, idx_v, R_rel, p_rel, law_B, law_neg_omega2, law_neg_2zo,
+                           x_lin[:nv], zero_e, zero_e, r_lin)
+            torque_split(M, r, r_lin, lin, ang, act, flex, tau_hat, ndo_on, tau_a, split)
             sat = flags[SATURATED] != 0
             for i in range(nw):  # actuators.WheelArray.clip_torque
                 lim = max_torque[i]
@@ -197,6 +210,9 @@ def run_ticks_ndi(
         for i in range(ne):
             peak = max(peak, abs(eta[i]))
         tr_modal[k] = peak
+        for c in range(3):
+            for i in range(na):
+                tr_split[k, c * na + i] = split[c, i] if ndi_on else 0.0
         if nw and tick % 10 == 0:
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)

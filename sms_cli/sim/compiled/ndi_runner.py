@@ -30,11 +30,18 @@ class NdiCompiledSimulation(CompiledSimulation):
     def _ndi_args(self, on: bool) -> tuple:
         return (on, *self.ndi.kernel_args())
 
+    def _law_model_args(self, tree) -> tuple:
+        """The law's model for ``run_ticks_ndi``: its own arrays with model errors, else the plant's (the tree's body
+        inertias, B, −Ω², −2ζΩ)."""
+        if self.ndi.has_model_errors:
+            return self.ndi.model_arrays()
+        return (tree[5], self.modal[0], self.modal[3], self.modal[4])
+
     def _begin_phase(self, phase) -> bool:
         """The base runner's payload changes; the law's observer is rebuilt when the model changed."""
         changed = super()._begin_phase(phase)
         if changed:
-            self.ndi.model_changed()
+            self.ndi.model_changed(self.sm)
         return changed
 
     def run(self):
@@ -57,6 +64,7 @@ class NdiCompiledSimulation(CompiledSimulation):
         arm_q, arm_v, effort = arm[0], arm[1], arm[7]
         stop_args = self._stop_args()
         n_arm, ns, stop_on = len(sm.arm), self.stop_table.n, stop_args[0]
+        n_act = nw + n_arm
         q_arm_ref = q[arm_q].copy()
         q_att_ref = q[3:7].copy()
         t, steps, segment = 0.0, 0, 0
@@ -91,18 +99,19 @@ class NdiCompiledSimulation(CompiledSimulation):
                     tr = {"t": np.empty(m), "att_err": np.empty(m), "wheel_speed": np.empty((m, nw)),
                           "wheel_torque": np.empty((m, nw)), "saturated": np.empty(m, dtype=np.bool_),
                           "momentum": np.empty((m, 6)), "energy": np.empty(m), "arm": np.empty((m, ARM_BLOCKS * n_arm + 6)),
-                          "wheel_rate_ref": np.empty((m, nw)), "modal_peak": np.empty(m)}
+                          "wheel_rate_ref": np.empty((m, nw)), "modal_peak": np.empty(m),
+                          "ndi_torque_split": np.empty((m, 3 * n_act))}
                     st_t, st_q, st_v = np.empty(ms), np.empty((ms, sm.nq)), np.empty((ms, sm.nv))
                     st_eta, st_etadot, st_tw = np.empty((ms, ne)), np.empty((ms, ne)), np.empty((ms, nw))
                     ev, ev_n = np.empty((2 * ns * ms if stop_on else 0, EV_COLS)), np.zeros(1, dtype=np.int64)
                     noise = self.sensors.draw(m)  # the normals of the slice's ticks (sensors.measure_state)
                     ticks, n_steps, code = run_ticks_ndi(
-                        *tree, *self.modal, *wheel_args, *self._ndi_args(ndi_on), q_ref, settle_tol, float(phase.settle_time),
+                        *tree, *self.modal, *self._law_model_args(tree), *wheel_args, *self._ndi_args(ndi_on), q_ref, settle_tol, float(phase.settle_time),
                         arm_q, arm_v, effort, ref_times, ref_points, joints.step, t_phase0, *stop_args,
                         self.sensors.noisy, self.sensors.par, noise, t, float(spec.dt), self.n_sub, tick0, m, float(spec.divergence.max_rate),
                         float(spec.divergence.max_modal_amplitude), q, v, eta, etadot, eff, settled,
                         tr["t"], tr["att_err"], tr["wheel_speed"], tr["wheel_torque"], tr["saturated"], tr["momentum"],
-                        tr["energy"], tr["arm"], tr["wheel_rate_ref"], tr["modal_peak"], st_t, st_q, st_v, st_eta, st_etadot,
+                        tr["energy"], tr["arm"], tr["wheel_rate_ref"], tr["modal_peak"], tr["ndi_torque_split"], st_t, st_q, st_v, st_eta, st_etadot,
                         st_tw, ev, ev_n)
                     self.sensors.rewind(ticks, m)  # a settled phase: the next phase's ticks draw on from here
                     piece = {k: a[:ticks] for k, a in tr.items()}
@@ -151,11 +160,13 @@ class NdiCompiledSimulation(CompiledSimulation):
                            "phase": np.array([len(spec.phases) - 1]), "arm": self._final_arm_row(q, v, q_arm_ref, filled),
                            "wheel_rate_ref": self.ndi.wheel_rate_ref.copy()[None],
                            "modal_peak": np.array([float(np.max(np.abs(eta))) if ne else 0.0]),
+                           "ndi_torque_split": filled[-1]["ndi_torque_split"][-1:],
                            "segment": np.array([segment])})
         trace = self._trace_arrays(pieces, nw, n_arm)
         cat = lambda key: np.concatenate([p[key] for p in pieces]) if pieces else None  # noqa: E731
         if pieces:
             trace["modal_peak"], trace["segment"] = cat("modal_peak"), cat("segment").astype(int)
+            trace["ndi_torque_split"] = cat("ndi_torque_split")
             if n_arm and nw and trace["t"].size:  # Kraiem 2022 (3.67): the law's desired wheel rates
                 trace["wheel_rate_ref"] = cat("wheel_rate_ref")
         return build_result(spec, sm, status, why, t, steps, trace, spans, wall, engine="compiled")
@@ -202,12 +213,12 @@ class NdiCompiledSimulation(CompiledSimulation):
                                                       ws, none_i), cost=5.0),
             KernelCall(f"{mod}.loop:effective_wheel_inertia", (*plant_tree, q, wheel_v, np.ones(nw), ws), cost=5.5),
             KernelCall(f"{mod}.ndi_loop:run_ticks_ndi", (
-                *tree, *self.modal, wheel_v, np.ones(nw), np.ones(nw), 0.0, 0.0, True, *law_state, q[3:7].copy(), -1.0, 0.0,
+                *tree, *self.modal, *self._law_model_args(tree), wheel_v, np.ones(nw), np.ones(nw), 0.0, 0.0, True, *law_state, q[3:7].copy(), -1.0, 0.0,
                 arm[0], arm[1], arm[7], np.zeros(2), np.zeros((2, n_arm)), False, 0.0, *stop_args,
                 self.sensors.noisy, self.sensors.par.copy(), np.zeros((0, self.sensors.width)), 0.0, 0.01, 1, 0, 0, 1e9, 1e3,
                 q.copy(), v.copy(), eta.copy(), ed.copy(), np.ones(nw), np.array([np.nan]), e1, e1, np.empty((0, nw)),
                 np.empty((0, nw)), np.empty(0, dtype=np.bool_), np.empty((0, 6)), e1, np.empty((0, 7 * n_arm + 6)),
-                np.empty((0, nw)), e1, e1, np.empty((0, sm.nq)), np.empty((0, sm.nv)), np.empty((0, ne)), np.empty((0, ne)),
+                np.empty((0, nw)), e1, np.empty((0, 3 * (nw + n_arm))), e1, np.empty((0, sm.nq)), np.empty((0, sm.nv)), np.empty((0, ne)), np.empty((0, ne)),
                 np.empty((0, nw)), np.empty((0, EV_COLS)), np.zeros(1, dtype=np.int64)), cost=8.0),
         ]
         tr = self.kinematics.tree  # the final state's momenta (every run) and the recording's

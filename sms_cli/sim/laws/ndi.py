@@ -43,7 +43,9 @@ def _f64(x) -> np.ndarray:
 class NdiObserver:
     """Combined wheel + arm law: returns actuator torques (wheels first, then arm joints). The arithmetic is
     ``sms_cli.sim.compiled.ndi_law`` (the one implementation, which the compiled loop calls too); this
-    class holds the law's state and evaluates M and the bias forces with the SystemModel (Pinocchio)."""
+    class holds the law's state and evaluates M and the bias forces with the SystemModel (Pinocchio) ``sm``: the
+    plant's, or a copy with model errors (``sms_cli.model.model_errors``; then ``model_changed`` follows the plant's
+    payloads on it)."""
 
     def __init__(self, sm: SystemModel, kp: np.ndarray, kv: np.ndarray, L: np.ndarray, attitude_gain: float,
                  period: float, wheel_feedforward: bool = True, Q_d: np.ndarray | None = None):
@@ -86,6 +88,11 @@ class NdiObserver:
             raise ValueError(f"the disturbance observer's Q_d must be {n_q}×{n_q} (wheels, then arm), got {self.Q_d.shape}")
         self.ndo_Phi, self.ndo_H = np.zeros((n_q, n_q)), np.zeros((n_q, n_q))
         self.ndo_g, self.tau_hat = np.zeros(n_q), np.zeros(n_q)
+        self.plant: SystemModel | None = None  # the plant's model when ``sm`` is a copy with model errors
+        # the last command's feedback, linearising and disturbance parts (3 × n_q; ndi_law.torque_split)
+        self.split = np.zeros((3, n_q))
+        self._x_lin = np.zeros(sm.nx)
+        self._model_arrays = None
 
     @property
     def saturated(self) -> bool:
@@ -94,15 +101,37 @@ class NdiObserver:
 
         return bool(self.flags[SATURATED])
 
-    def model_changed(self) -> None:
-        """A payload was attached or released: the observer's discretisation is rebuilt at the next period."""
+    @property
+    def has_model_errors(self) -> bool:
+        """The law's model is not the plant's (``simulation.ndi.model_errors``)."""
+        return self.plant is not None
+
+    def model_changed(self, plant: SystemModel | None = None) -> None:
+        """A payload was attached or released on ``plant``: the law's own model follows it (model errors), and
+        the observer's discretisation is rebuilt at the next period."""
+        from sms_cli.model.model_errors import follow_payloads
         from sms_cli.sim.compiled.ndi_law import DISC_VALID
 
+        if self.has_model_errors and plant is not None:
+            follow_payloads(self.sm, plant)
+            self._model_arrays = None
         self.flags[DISC_VALID] = 0
+
+    def model_arrays(self) -> tuple:
+        """The law's model as the compiled loop takes it (with model errors): the flattened tree's body inertias,
+        then B, −Ω², −2ζΩ of the base-mounted modes (``compiled.plant.modal_arrays``)."""
+        if self._model_arrays is None:
+            from sms_cli.sim.compiled.plant import modal_arrays
+            from sms_cli.sim.compiled.tree import flatten
+
+            B, _, _, no2, n2z = modal_arrays(self.sm)
+            self._model_arrays = (flatten(self.sm.model).inertia, B, no2, n2z)
+        return self._model_arrays
 
     def reset(self) -> None:
         self.x_hat[:] = 0.0
         self.tau_hat[:] = 0.0
+        self.split[:] = 0.0
         self.flags[:] = 0
 
     def kernel_args(self) -> tuple:
@@ -118,7 +147,7 @@ class NdiObserver:
     # ------------------------------------------------------------------ control
     def torques(self, s: Sensed, att_ref: AttitudeRef, arm_ref: ArmRef) -> np.ndarray:
         """Actuator torques (wheels, then arm) for this control period; call ``observe`` afterwards."""
-        from sms_cli.sim.compiled.ndi_law import ndi_command, ndi_velocity, ndo_estimate
+        from sms_cli.sim.compiled.ndi_law import ndi_command, ndi_velocity, ndo_estimate, rigid_velocity, torque_split
 
         sm, ix = self.sm, self.ix
         M = _f64(sm.mass_matrix(s.q))
@@ -139,6 +168,11 @@ class NdiObserver:
                     self.k_att, self.wheel_feedforward, self.wheel_limit, _f64(s.quat), omega, v, _f64(s.q_arm),
                     _f64(att_ref.quat), _f64(att_ref.omega), _f64(arm_ref.q), _f64(arm_ref.qd), _f64(arm_ref.qdd),
                     self.flags, self.wheel_pinv, self.wheel_rate_ref, self._tau)
+        rigid_velocity(M, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, v, self._x_lin)
+        v_lin, zero = self._x_lin[: sm.nv], np.zeros(sm.n_modes)
+        r_lin = _f64(sm.bias_forces(s.q, v_lin, zero) - sm.internal_forces(s.q, v_lin, zero, zero))
+        torque_split(M, r, r_lin, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.tau_hat, self.ndo,
+                     self._tau, self.split)
         self._M, self._y, self._q_act, self._r, self._qdot_a = M, omega, _f64(s.q[self._q_act_idx]), r, _f64(v[ix.actuators])
         return self._tau.copy()
 
@@ -177,6 +211,9 @@ def ndi_warm_calls(law: NdiObserver) -> list:
                                           z(law.n_m), flags.copy(), pinv.copy(), wrr.copy(), z(n_q)), cost=1.5),
         KernelCall(f"{mod}:ndi_observe", (M, z(law.n_m), z(3), z(n_q), lin, ang, act, flex, K_f, C_f, L, T, refresh, flags.copy(),
                                           dq.copy(), Phi.copy(), Gam.copy(), Bt.copy(), xh.copy()), cost=2.0),
+        KernelCall(f"{mod}:rigid_velocity", (M, lin, ang, act, flex, z(sm.nv), z(sm.nx)), cost=0.5),
+        KernelCall(f"{mod}:torque_split", (M, z(sm.nx), z(sm.nx), lin, ang, act, flex, th.copy(), law.ndo, z(n_q),
+                                           np.zeros((3, n_q))), cost=1.0),
     ] + ([
         KernelCall(f"{mod}:ndo_estimate", (z(n_q), flags.copy(), nPhi.copy(), ng.copy(), nH.copy(), th.copy()), cost=0.2),
         KernelCall(f"{mod}:ndo_refresh", (M, z(sm.nx), lin, ang, act, flex, z(n_q), z(n_q), Q_d, T, flags.copy(), nPhi.copy(),
@@ -195,9 +232,26 @@ def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_di
 
     kp, kv, L = spec.kp, spec.kv, spec.L
     Q_d = spec.Q_d if spec.disturbance_observer else None
-    if spec.Q_d is not None and not spec.disturbance_observer:
-        raise InputError(problems=[Problem("simulation.ndi gives Q_d but the disturbance observer is off",
-                                           field="simulation.ndi.Q_d", hint="add disturbance_observer: true")])
+    if spec.Q_d is not None and spec.ndo_bandwidth is not None:
+        raise InputError(problems=[Problem("simulation.ndi gives both Q_d and ndo_bandwidth", field="simulation.ndi.Q_d",
+                                           hint="keep one: Q_d = ndo_bandwidth · M◇ is what ndo_bandwidth designs")])
+    plant = None
+    if spec.model_errors is not None:  # the law inverts and observes its own, erroneous copy of the model
+        from sms_cli.model.model_errors import law_model
+
+        e = spec.model_errors
+        plant, sm = sm, law_model(sm, e.inertia, e.com, e.modal_frequency, e.seed)
+    if L == "kalman" or (spec.disturbance_observer and spec.ndo_bandwidth is not None):  # designs on the law's model
+        from sms_cli.sim.laws.ndi_gains import kalman_gain, ndo_gain
+
+        if L == "kalman":
+            L = kalman_gain(sm, spec.kalman.process, spec.kalman.measurement)
+        if spec.disturbance_observer and spec.ndo_bandwidth is not None:
+            Q_d = ndo_gain(sm, spec.ndo_bandwidth)
+    for given in ("Q_d", "ndo_bandwidth"):
+        if getattr(spec, given) is not None and not spec.disturbance_observer:
+            raise InputError(problems=[Problem(f"simulation.ndi gives {given} but the disturbance observer is off",
+                                               field=f"simulation.ndi.{given}", hint="add disturbance_observer: true")])
     if kp is None or kv is None or L is None or (spec.disturbance_observer and Q_d is None):
         from sms_cli.synthesis.gains_io import read_gains
 
@@ -233,8 +287,10 @@ def build_ndi(spec, sm: SystemModel, period: float, results_dir=None, mission_di
                     hint="synthesize with synthesis.lmi.variant: ndi_observer_ndo, or give simulation.ndi.Q_d")])
             Q_d = g.observer.Q_d
     try:
-        return NdiObserver(sm, np.asarray(kp, float), np.asarray(kv, float), np.asarray(L, float),
-                           spec.attitude_gain, period, spec.wheel_feedforward,
-                           None if Q_d is None else np.asarray(Q_d, float))
+        law = NdiObserver(sm, np.asarray(kp, float), np.asarray(kv, float), np.asarray(L, float),
+                          spec.attitude_gain, period, spec.wheel_feedforward,
+                          None if Q_d is None else np.asarray(Q_d, float))
+        law.plant = plant
+        return law
     except ValueError as exc:
         raise InputError(problems=[Problem(str(exc), field="simulation.ndi")]) from None
