@@ -72,3 +72,28 @@ def test_the_designs_are_made_on_the_laws_model(pulsar):
     assert np.allclose(law.L, kalman_gain(copy, 1e-2, 1e-4), rtol=1e-10, atol=1e-12)
     assert np.allclose(law.Q_d, ndo_gain(copy, 0.5), rtol=1e-12, atol=0)
     assert not np.allclose(law.Q_d, ndo_gain(pulsar, 0.5), rtol=1e-6, atol=0)
+
+
+def test_the_law_follows_the_plants_payloads(pulsar):
+    """A release on the plant, told to the law (model_changed), releases the tile from the law's copy too, and the
+    compiled loop's arrays of the law's model are rebuilt from it."""
+    from sms_cli.model.model_errors import law_model
+    from sms_cli.sim.laws.ndi import build_ndi
+    from sms_cli.sim.schema import NdiSpec
+
+    spec = NdiSpec(kp=1, kv=1, L="kalman", model_errors={"inertia": 0.03, "com": 0.1, "seed": 3})
+    law = build_ndi(spec, pulsar, 0.1)
+    before = law.model_arrays()[0].copy()
+    name = next(iter(pulsar.payloads))
+    pulsar.detach_payload(name)
+    try:
+        law.model_changed(pulsar)
+        assert not law.sm.payloads[name].attached
+        expected = law_model(pulsar, 0.03, 0.1, 0.0, 3)
+        q = pulsar.q0
+        assert np.allclose(law.sm.mass_matrix(q), expected.mass_matrix(q), rtol=1e-12, atol=1e-9)
+        assert not np.allclose(law.model_arrays()[0], before)
+    finally:
+        pulsar.attach_payload(name)
+        law.model_changed(pulsar)
+    assert law.sm.payloads[name].attached

@@ -196,7 +196,9 @@ def test_both_loops_agree_with_model_errors_and_the_disturbance_observer(tmp_pat
     erroneous = dict(base, model_errors={"inertia": 0.03, "com": 0.1, "modal_frequency": 0.1, "seed": 1})
     (tmp_path / "errors").mkdir()
     (tmp_path / "exact").mkdir()
-    py, _ = _compare_missions_text(tmp_path / "errors", lambda e: _mission_text("pulsar_simple.yaml", e, FLAGSHIP, erroneous))
+    # then a free-floating phase: the law is off, its split is traced as zero in both loops
+    phases = FLAGSHIP + "    - {name: drift, kind: hold, duration: 1 s, base_mode: free-floating}\n"
+    py, _ = _compare_missions_text(tmp_path / "errors", lambda e: _mission_text("pulsar_simple.yaml", e, phases, erroneous))
     exact, _ = _compare_missions_text(tmp_path / "exact", lambda e: _mission_text("pulsar_simple.yaml", e, FLAGSHIP, base))
     transfer = lambda res: next(p for p in res["phases"] if p["name"] == "transfer")  # noqa: E731
     split, split_exact = transfer(py)["torque_split"], transfer(exact)["torque_split"]
@@ -208,3 +210,4 @@ def test_both_loops_agree_with_model_errors_and_the_disturbance_observer(tmp_pat
     assert max(split["wheels"]["disturbance_peak"]) > 1e3 * max(split_exact["wheels"]["disturbance_peak"])
     assert json.dumps(split) != json.dumps(split_exact)
     assert transfer(py)["joint_rate_error_rel_max"] != transfer(exact)["joint_rate_error_rel_max"]
+    assert next(p for p in py["phases"] if p["name"] == "drift")["torque_split"] is None

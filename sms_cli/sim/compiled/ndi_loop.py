@@ -210,9 +210,9 @@ def run_ticks_ndi(
         for i in range(ne):
             peak = max(peak, abs(eta[i]))
         tr_modal[k] = peak
-        for c in range(3):
+        for c in range(3):  # zero where the law is off: ndi_on is the same for every tick of a call
             for i in range(na):
-                tr_split[k, c * na + i] = split[c, i] if ndi_on else 0.0
+                tr_split[k, c * na + i] = split[c, i]
         if nw and tick % 10 == 0:
             effective_wheel_inertia(parent, kind, axis, place_R, place_p, inertia, leaf_IA, armature, idx_q, idx_v, q, wheel_v,
                                     eff_inertia, work)
