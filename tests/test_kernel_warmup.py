@@ -61,6 +61,34 @@ def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path,
     assert again["compiled"] == 0 and again["lanes"] == 0  # all cached: nothing said, nothing compiled
 
 
+def test_a_kernel_this_process_holds_is_cached_without_reading_the_index(tmp_path, monkeypatch):
+    """``cached`` on a kernel with machine code in this process answers True without reading numba's
+    index files (each run of a campaign paid that read again); before the first call it reads the index
+    (empty cache: False)."""
+    import numba
+
+    import sms_cli.sim.compiled.warmup as W
+
+    pkg = tmp_path / "src"
+    pkg.mkdir()
+    (pkg / "sms_toy_held.py").write_text(TOY)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache))
+    monkeypatch.syspath_prepend(str(pkg))
+    import sms_toy_held as toy
+
+    call = KernelCall("sms_toy_held:add_into", (np.arange(3.0), np.arange(3.0), np.empty(3)))
+    reads = []
+    index_file = toy.add_into._cache._cache_file
+    real = index_file._load_index
+    monkeypatch.setattr(index_file, "_load_index", lambda: reads.append(1) or real())
+    assert W.cached(call) is False and len(reads) == 1  # nothing compiled anywhere yet
+    call()  # compiles (numba reads and writes its index here)
+    n = len(reads)
+    assert W.cached(call) is True and len(reads) == n  # held here: the index is not read again
+
+
 SIGNATURES = textwrap.dedent('''
     import json, sys
     from pathlib import Path
