@@ -262,7 +262,6 @@ def run_ticks(
         T[:] = 0.0
         tau_w[:] = 0.0
         sat = False
-        m_fresh = False  # M_full holds M at the measured state (R_rel, p_rel) of this tick
         joint_transforms(kind, axis, place_R, place_p, idx_q, qs, R_rel, p_rel)
         momenta_energy(parent, kind, axis, inertia, mass, com, armature, idx_v, R_rel, p_rel, vs, me, work)
         if sensed:
@@ -293,6 +292,7 @@ def run_ticks(
             error_quaternion(qs[3:7], q_ref, qe)
             reference_rates(qe, w_ref, wd_ref, om_r, dom_r)
             if body_code == 2:  # SystemBody.inertia, inertia_rate
+                system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
                 for a in range(nv):
                     dq[a] = fd_step * vs[a]
                 for sgn in range(2):
@@ -301,9 +301,6 @@ def run_ticks(
                     system_inertia(parent, kind, axis, inertia, armature, idx_v, R_fd, p_fd, elim, M_full, J_pm[sgn])
                     for a in range(nv):
                         dq[a] = -fd_step * vs[a]
-                # last, so that M_full is M at the measured state: the arm's model reads it (m_fresh)
-                system_inertia(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, elim, M_full, J_on)
-                m_fresh = True
                 for a in range(3):
                     for b in range(3):
                         Jd_on[a, b] = (J_pm[0, a, b] - J_pm[1, a, b]) / (2.0 * fd_step)
@@ -352,8 +349,7 @@ def run_ticks(
                                    etadot, n_aug)
                     arm_model_terms(M_aug, n_aug, arm_a, arm_p, Mstar, hstar)
                 elif model_law:
-                    if not m_fresh:
-                        mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
+                    mass_matrix(parent, kind, axis, inertia, armature, idx_v, R_rel, p_rel, M_full)
                     bias_forces(parent, kind, axis, inertia, idx_v, R_rel, p_rel, vs, n_full)
                     arm_model_terms(M_full, n_full, arm_a, arm_p, Mstar, hstar)
                 arm_torque(arm_code, arm_par, arm_wrap, ref_q, ref_qd, ref_qdd, q_arm, qd_arm, Mstar, hstar, tau_m)
