@@ -33,21 +33,27 @@ TOY = textwrap.dedent('''
 ''')
 
 
-def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path, monkeypatch):
-    """Two groups on two lanes: the costlier compiles in a worker process, the other here; this
-    process then loads the worker's from the cache (a hit, no compilation of its own)."""
+def _toy_module(tmp_path, monkeypatch, name: str):
+    """TOY's kernels as module ``name`` in tmp_path, with numba's cache there too (workers inherit it)."""
+    import importlib
+
     import numba
 
     pkg = tmp_path / "src"
     pkg.mkdir()
-    (pkg / "sms_toy_kernels.py").write_text(TOY)
+    (pkg / f"{name}.py").write_text(TOY)
     cache = tmp_path / "cache"
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
     monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache))
     monkeypatch.setenv("PYTHONPATH", str(pkg))
     monkeypatch.syspath_prepend(str(pkg))
-    import sms_toy_kernels as toy
+    return importlib.import_module(name)
 
+
+def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path, monkeypatch):
+    """Two groups on two lanes: the costlier compiles in a worker process, the other here; this
+    process then loads the worker's from the cache (a hit, no compilation of its own)."""
+    toy = _toy_module(tmp_path, monkeypatch, "sms_toy_kernels")
     x = np.arange(3.0)
     costly = KernelCall("sms_toy_kernels:double_into", (x, np.empty(3)), cost=2.0)
     cheap = KernelCall("sms_toy_kernels:add_into", (x, x, np.empty(3)), cost=1.0)
@@ -59,6 +65,29 @@ def test_a_worker_lane_compiles_into_the_cache_this_process_then_loads(tmp_path,
     assert toy.add_into.stats.cache_misses  # compiled here
     again = warm([[cheap], [costly]], lanes=2, stream=io.StringIO())
     assert again["compiled"] == 0 and again["lanes"] == 0  # all cached: nothing said, nothing compiled
+
+
+def test_a_kernel_this_process_holds_is_cached_without_reading_the_index(tmp_path, monkeypatch):
+    """``cached`` on a kernel with machine code in this process answers True without reading numba's
+    index files (each run of a campaign paid that read again); before the first call it reads the index
+    (empty cache: False)."""
+    import sms_cli.sim.compiled.warmup as W
+
+    toy = _toy_module(tmp_path, monkeypatch, "sms_toy_held")
+    call = KernelCall("sms_toy_held:add_into", (np.arange(3.0), np.arange(3.0), np.empty(3)))
+    reads = []
+    index_file = toy.add_into._cache._cache_file
+    real = index_file._load_index
+    monkeypatch.setattr(index_file, "_load_index", lambda: reads.append(1) or real())
+    assert W.cached(call) is False and len(reads) == 1  # nothing compiled anywhere yet
+    call()  # compiles (numba reads and writes its index here)
+    n = len(reads)
+    assert W.cached(call) is True and len(reads) == n  # held here: the index is not read again
+    import functools
+
+    timed = functools.wraps(toy.add_into, updated=())(lambda *a: 0)  # a timer around the kernel (only __wrapped__)
+    monkeypatch.setattr(toy, "add_into", timed)
+    assert W.cached(call) is True  # the kernel behind the wrapper
 
 
 SIGNATURES = textwrap.dedent('''

@@ -121,6 +121,40 @@ def test_block_writes_the_same_messages_as_steps(tmp_path, rate):
     assert len(tf) == len(LINKS) * b.samples
 
 
+@pytest.mark.parametrize("block", [False, True])
+def test_message_indexes_point_at_their_messages(tmp_path, block):
+    """Every MessageIndex entry (the mcap library's reader parses them) points, in its chunk's decompressed
+    records, at a Message record of that channel and log time, and each chunk's messages are indexed once: the
+    block path's index arrays (``McapWriter.add_index_blocks``) and the per-step path's lists alike."""
+    import struct
+
+    import zstandard
+    from mcap.records import Chunk, MessageIndex
+    from mcap.stream_reader import StreamReader
+
+    _record(tmp_path / "r.mcap", None, block=block, n=3000)
+    chunk, seen, n_chunks = None, {}, 0
+    with open(tmp_path / "r.mcap", "rb") as f:
+        for r in StreamReader(f, emit_chunks=True).records:
+            if isinstance(r, Chunk):
+                assert r.compression == "zstd"
+                chunk = zstandard.ZstdDecompressor().decompress(r.data, max_output_size=r.uncompressed_size)
+                n_messages = 0
+                pos = 0
+                while pos < len(chunk):  # count the chunk's Message records (opcode 5)
+                    op, length = chunk[pos], struct.unpack_from("<Q", chunk, pos + 1)[0]
+                    n_messages += op == 5
+                    pos += 9 + length
+                seen[id(chunk)] = [n_messages, 0]
+                n_chunks += 1
+            elif isinstance(r, MessageIndex):
+                for log_time, offset in r.records:
+                    op, _, channel, _, t_log = struct.unpack_from("<BQHIQ", chunk, offset)
+                    assert (op, channel, t_log) == (5, r.channel_id, log_time)
+                seen[id(chunk)][1] += len(r.records)
+    assert n_chunks > 1 and all(total == indexed for total, indexed in seen.values())
+
+
 @pytest.mark.parametrize("rate", [None, 7, 10, 333])
 def test_select_picks_the_offers_take_picks(tmp_path, rate):
     """``select`` on blocks (random sizes, one-offer and empty blocks; times on a grid of dt = 0.01 s as the loops

@@ -633,8 +633,7 @@ class McapRecorder:
                 for cid, start in zip(cids, starts[0].tolist()):
                     w.channel_index(cid).extend((t, start))
             else:
-                for k, cid in enumerate(cids):
-                    w.add_index_block(cid, stamps, starts[:, k])
+                w.add_index_blocks(cids, stamps, starts)
             if len(buf) >= w.chunk_size:
                 w.flush_chunk()
             i = j

@@ -265,10 +265,17 @@ class ChunkedMcapWriter:
         """
         return self._index[channel_id]
 
-    def add_index_block(self, channel_id: int, log_times: np.ndarray, offsets: np.ndarray) -> None:
-        """Index entries of messages a caller packed into the open chunk itself, as arrays (offsets
-        into the chunk buffer): the block path's form of ``channel_index``."""
-        self._blocks[channel_id].append(np.column_stack([log_times, offsets]).astype(np.uint64))
+    def add_index_blocks(self, channel_ids: list[int], log_times: np.ndarray, offsets: np.ndarray) -> None:
+        """Index entries of messages a caller packed into the open chunk itself, as arrays: n samples
+        stamped ``log_times`` (n,), one message per channel each, at ``offsets`` (n, len(channel_ids))
+        into the chunk buffer; the block path's form of ``channel_index``. One array for all the
+        channels (each gets a view): a column_stack per channel cost ~1 µs per plant step on a
+        mission recorded every other step."""
+        rows = np.empty((len(channel_ids), log_times.shape[0], 2), dtype=np.uint64)
+        rows[:, :, 0] = log_times
+        rows[:, :, 1] = offsets.T
+        for k, cid in enumerate(channel_ids):
+            self._blocks[cid].append(rows[k])
 
     def _entries(self, channel_id: int) -> np.ndarray:
         """The open chunk's index entries of a channel, (k, 2) uint64, in the order added."""
