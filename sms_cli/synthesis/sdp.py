@@ -139,6 +139,7 @@ class SdpResult:
     # runs that did not converge: ‖AX̂‖ of the last multipliers (``_farkas``): no point y of the
     # LMIs (solver's scaled variables) has ‖y‖ < 1/farkas; inf when X proves nothing
     farkas: float = np.inf
+    qr_steps: int = 0  # iterations whose Newton systems went through the QR factorisation of S
 
 
 class _Group:
@@ -448,6 +449,7 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     gap = pinf = dinf = np.inf
     ng = len(gs)
     use_qr = method == "qr"
+    qr_steps = 0
     schur_cg = any(g.mv for g in gs)  # matrix variables: CG through S before any QR
     best: tuple = (np.inf, np.inf, np.inf, 0, None)  # (gap, pinf, dinf, iteration, y) of the best iterate
     history: list[float] = []
@@ -579,6 +581,7 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             Z[q] = Z[q] + ad * (Rd[q] - g.adjoint(dy))
             Z[q] = (Z[q] + tr(Z[q])) / 2
         y = y + ad * dy
+        qr_steps += use_qr
         if verbose:
             print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {'qr' if use_qr else 'chol+cg' if schur_cg else 'chol'}")
         if max(ap, ad) < 1e-8:
@@ -593,7 +596,7 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         Fx = b.F0 + np.einsum("k,kab->ab", x[b.idx], b.F)
         nrm = max(np.linalg.norm(b.F0), 1e-300) if len(b.idx) == 0 else max(np.linalg.norm(Fx), 1e-300)
         worst = min(worst, float(np.min(np.linalg.eigvalsh((Fx + Fx.T) / 2))) / nrm)
-    return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0, farkas)
+    return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0, farkas, qr_steps)
 
 
 def _farkas(gs: list[_Group], X: list[np.ndarray], m: int) -> float:
