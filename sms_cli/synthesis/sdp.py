@@ -349,14 +349,16 @@ class _Schur:
             return solve_triangular(self.R, w, check_finite=False)
         return cho_solve(self.cf, h, check_finite=False)
 
-    def solve(self, h: np.ndarray, target: float = 0.0, refine: int = 2) -> tuple[np.ndarray, float]:
+    def solve(self, h: np.ndarray, target: float = 0.0, refine: int = 2,
+              cg_target: float = 0.0) -> tuple[np.ndarray, float]:
         """(Δy, ‖h − SᵀSΔy‖), refined through S until the residual is below ``target`` (at most
-        ``refine`` times; conjugate-gradient steps, at most ``CG_MAX``, with matrix variables)."""
+        ``refine`` times); with matrix variables ('chol'), conjugate-gradient steps (at most
+        ``CG_MAX``, each two products with S, so stopped at the looser ``cg_target``)."""
         dy = self._base(h)
         r = h - self.matvec(dy)
         err = float(np.linalg.norm(r))
         if self.cg and self.method == "chol":
-            return self._pcg(h, dy, r, err, target)
+            return self._pcg(h, dy, r, err, max(target, cg_target))
         for _ in range(refine):
             if err <= target:
                 break
@@ -372,7 +374,7 @@ class _Schur:
         z = self._base(r)
         p = z.copy()
         rz = float(r @ z)
-        for _ in range(CG_MAX):
+        for k in range(CG_MAX):
             if err <= target or rz <= 0:
                 break
             w = self.matvec(p)
@@ -381,10 +383,13 @@ class _Schur:
                 break
             alpha = rz / pw
             dy = dy + alpha * p
-            r = h - self.matvec(dy)
+            r = r - alpha * w  # recursive residual; the true one (through S) when it looks done
             err = float(np.linalg.norm(r))
-            if err < best[0]:
-                best = (err, dy)
+            if err <= target or k % 10 == 9 or k == CG_MAX - 1:
+                r = h - self.matvec(dy)
+                err = float(np.linalg.norm(r))
+                if err < best[0]:
+                    best = (err, dy)
             z = self._base(r)
             rz_new = float(r @ z)
             p = z + (rz_new / rz) * p
@@ -392,7 +397,7 @@ class _Schur:
         return best[1], best[0]
 
 
-CG_MAX = 30  # conjugate-gradient steps per Newton system (matrix variables only)
+CG_MAX = 60  # conjugate-gradient steps per Newton system (matrix variables only)
 
 
 def groups(blocks: list[LmiBlock], m: int, declared: bool = True) -> tuple[list[_Group], np.ndarray]:
@@ -530,7 +535,7 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             # the residual is exactly the primal residual the step leaves: keep it below a tenth
             # of the current one (or far below OPT_TOL), else switch to the QR factorisation
             target = max(0.1 * float(np.linalg.norm(Rp)), 1e-3 * OPT_TOL * normb)
-            dy, err = schur.solve(h, 1e-3 * target)
+            dy, err = schur.solve(h, 1e-3 * target, cg_target=0.1 * target)
             if not use_qr and err > target:
                 use_qr = True
                 schur = _Schur(gs, St, m, "qr", At)
@@ -582,6 +587,8 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             Z[q] = (Z[q] + tr(Z[q])) / 2
         y = y + ad * dy
         qr_steps += use_qr
+        if schur_cg and method != "qr":  # with matrix variables QR is per iteration: CG is retried
+            use_qr = False
         if verbose:
             print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {'qr' if use_qr else 'chol+cg' if schur_cg else 'chol'}")
         if max(ap, ad) < 1e-8:
