@@ -75,7 +75,8 @@ def region_pattern(region: PoleRegion) -> list[tuple[int, list[tuple[str, float,
     ('N', c, p, q) puts c·N in sub-block (p, q) and c·Nᵀ in (q, p) (both in (p, p) when p = q),
     ('X', c, p, p) puts c·X in (p, p)."""
     out = [(1, [("N", -1.0, 0, 0), ("X", -2.0 * region.alpha, 0, 0)]),      # −(N + Nᵀ + 2αX)
-           (2, [("X", region.radius, 0, 0), ("X", region.radius, 1, 1), ("N", -1.0, 0, 1)])]  # −[[−rX, N], [Nᵀ, −rX]]
+           (2, [("X", region.radius, 0, 0), ("X", region.radius, 1, 1),   # −[[−rX, N], [Nᵀ, −rX]]
+                ("N", -1.0, 0, 1)])]
     if region.zeta_min > 0:  # −[[s(N + Nᵀ), c(N − Nᵀ)], [c(Nᵀ − N), s(N + Nᵀ)]]
         theta = math.acos(region.zeta_min)
         s, c = math.sin(theta), math.cos(theta)

@@ -35,9 +35,9 @@ for the rest of the run. With declared matrix variables the formed M's Cholesky 
 until it factors) instead preconditions conjugate gradients on SᵀSΔy = h, whose products go
 through the blocks; only a system whose CG misses the target is solved by QR of the formed S,
 and CG is tried again at the next iteration (chapter 4 at the thesis's size: no QR step at
-|T| = 1, against 16 of 32 iterations before). Near the optimum of the synthesis problems the NT scaling of the observer blocks
-(lightly damped flexible modes) reaches cond(G) ~ 1e3, cond(M) ~ 1e16: the formed M is then
-indefinite in floating point, and the Cholesky-only version stalled at a primal residual of
+|T| = 1; QR for 8 of about 60 systems at |T| = 3). Near the optimum of the synthesis problems
+the NT scaling of the observer blocks (lightly damped flexible modes) reaches cond(G) ~ 1e3,
+cond(M) ~ 1e16: the formed M is then indefinite in floating point, and the Cholesky-only version stalled at a primal residual of
 ~1e-3 from LMI size 37 on (with γ̃² 1 % above the optimum).
 
 Where even the QR route saturates (cond(S) ~ 1e15: from LMI size ~99 the gap stalls near 7e-7),
@@ -430,7 +430,8 @@ def solve_lmi(c: np.ndarray, blocks: list[LmiBlock], tol: float = 1e-8, max_iter
     method: 'auto' (Cholesky of the Schur complement, QR of its factor from the first step
     whose residual is too large; with blocks declaring matrix variables, their part of the
     Schur complement in Kronecker form and conjugate gradients instead of QR), 'dense' (as
-    'auto' with the declarations ignored) or 'qr' (QR throughout, declarations ignored). On an infeasible problem the iterates
+    'auto' with the declarations ignored) or 'qr' (QR throughout, declarations ignored). On an
+    infeasible problem the iterates
     grow without bound; the run stops on non-finite residuals with status 'failed', so numpy's
     overflow warnings on the way are silenced rather than shown to the user."""
     with np.errstate(over="ignore"):
@@ -592,7 +593,8 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         if schur_cg and method != "qr":  # with matrix variables QR is per iteration: CG is retried
             use_qr = False
         if verbose:
-            print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {'qr' if use_qr else 'chol+cg' if schur_cg else 'chol'}")
+            how = "qr" if use_qr else "chol+cg" if schur_cg else "chol"
+            print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {how}")
         if max(ap, ad) < 1e-8:
             break
     if status != "optimal":
