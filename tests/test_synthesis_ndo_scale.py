@@ -123,7 +123,8 @@ def test_thesis_shaped_ndo_problem_solves_and_verifies_with_the_dedicated_solver
 def test_thesis_size_ndo_problem_solves_and_verifies():
     """(a') Kraiem 2022's own size, one linearisation: n_q = 14 (6 wheels, rail, 7 arm joints),
     22 modes (n_e = 47): 1460 variables, the full (4.27) Θ has 103 rows. The dedicated solver
-    converges alone (measured: 31 iterations, 41 s CPU) and every check of verify_lmi passes,
+    converges alone (measured: 32 iterations, 8.4 s CPU with the Kronecker-form Schur complement)
+    and every check of verify_lmi passes,
     including the full Θ."""
     req = ndo_request(1)
     res = synthesize(req, solver="ipm")

@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sms_cli.synthesis.regions import region_blocks
+from sms_cli.synthesis.matvar import MatrixTerm, check
+from sms_cli.synthesis.regions import region_blocks, region_pattern
 from sms_cli.synthesis.sdp import LmiBlock, single_thread_blas, solve_lmi
 
 
@@ -59,20 +60,54 @@ class Layout:
         return out
 
 
-def _blocks_of(layout: Layout, names: list[str], fn, group: str) -> list[LmiBlock]:
-    """LmiBlocks (one per matrix fn returns) of the affine fn(vars) over the named variables."""
+def _blocks_of(layout: Layout, names: list[str], fn, group: str, terms=None) -> list[LmiBlock]:
+    """LmiBlocks (one per matrix fn returns) of the affine fn(vars) over the named variables.
+
+    terms: optional, one {variable name: [(L_s, R_s), …]} per returned matrix, declaring that the
+    named matrix variable X enters it as Σ_s (L_sᵀ X R_s + R_sᵀ Xᵀ L_s) (``matvar``; the solver
+    then forms its part of the Schur complement in Kronecker form). Each declaration is checked
+    against the coefficients read off fn (ValueError if it does not reproduce them)."""
     idx = layout.indices(names)
     B = 1 + len(idx)
     x = np.zeros((B, layout.m))
     x[np.arange(1, B), idx] = 1.0
     mats = fn(layout.unpack(x))
     out = []
-    for F in mats:
+    for j, F in enumerate(mats):
         F = (F + np.swapaxes(F, -1, -2)) / 2
         F0, Fi = F[0], F[1:] - F[0]
         used = np.any(Fi != 0, axis=(1, 2))
-        out.append(LmiBlock(idx[used], F0, Fi[used], group))
+        blk = LmiBlock(idx[used], F0, Fi[used], group)
+        for name, LR in (terms[j] if terms else {}).items():
+            t = _declare(layout, name, LR, idx, used)
+            check(t, Fi[used][t.pos])
+            blk.terms.append(t)
+        out.append(blk)
     return out
+
+
+def _declare(layout: Layout, name: str, LR, idx: np.ndarray, used: np.ndarray) -> MatrixTerm:
+    """The MatrixTerm of variable ``name`` (a 'sym' or 'mat' slot) with terms LR = [(L, R), …],
+    positions counted in the block's used variables (all of the slot's entries must be used)."""
+    kind, shape, sl = layout.slots[name]
+    inslot = (idx >= sl.start) & (idx < sl.stop)
+    if not np.all(used[inslot]):
+        raise ValueError(f"{name}: declared, but some of its entries do not enter the block")
+    pos = np.flatnonzero(inslot[used])
+    if kind == "sym":
+        a, b = np.triu_indices(shape[0])
+    else:
+        a, b = np.divmod(np.arange(shape[0] * shape[1]), shape[1])
+    L = np.stack([t[0] for t in LR])
+    R = np.stack([t[1] for t in LR])
+    return MatrixTerm(pos, a, b, kind == "sym", L, R)
+
+
+def _emb(rows: int, nsub: int, size: int, p: int, M) -> np.ndarray:
+    """(rows, nsub·size): M (rows×size) in column block p, zero elsewhere."""
+    E = np.zeros((rows, nsub * size))
+    E[:, p * size:(p + 1) * size] = M
+    return E
 
 
 def _mat(entries, B: int) -> np.ndarray:
@@ -202,14 +237,17 @@ def structured_problem(req, sc, eps: float, q_max: float):
 
             blocks += _blocks_of(lay, ctrl + ["c_z"], box, "initial_conditions")
     Ee = np.diag(sc.T) @ req.E_e @ np.diag(sc.T)
-    blocks += _blocks_of(lay, ["P", "c_e"], lambda V: [V["c_e"][:, :, None] * Ee - V["P"]], "initial_conditions")
+    I_e = np.eye(n_e)
+    blocks += _blocks_of(lay, ["P", "c_e"], lambda V: [V["c_e"][:, :, None] * Ee - V["P"]], "initial_conditions",
+                         terms=[{"P": [(I_e, -I_e / 2)]}])
     budget = ["c_e"] + (["c_z"] if track else [])
     total = 1.0 - C_D if ndo else 1.0
     blocks += _blocks_of(lay, budget, lambda V: [(total - V["c_e"][:, 0] - (np.sum(V["c_z"], axis=1) if track else 0))
                                                  [:, None, None]], "initial_conditions")
     if ndo:
         blocks += _ndo_blocks(req, sc, lay, eps)
-        blocks += _blocks_of(lay, ["P"], lambda V: [V["P"] - eps * np.eye(n_e)], "positivity")
+        blocks += _blocks_of(lay, ["P"], lambda V: [V["P"] - eps * np.eye(n_e)], "positivity",
+                             terms=[{"P": [(I_e, I_e / 2)]}])
     # nonnegative variables (cvxpy's nonneg=True): g, s, c_e, c_z
     for nm in ("g", "s", "c_e") + (("c_z",) if track else ()):
         blocks += _blocks_of(lay, [nm], lambda V, nm=nm: [V[nm][:, k, None, None] for k in range(V[nm].shape[1])],
@@ -225,12 +263,54 @@ def structured_problem(req, sc, eps: float, q_max: float):
             Phi = PA + PAt + np.einsum("ka,bk,kc->bac", mdl.B_eps, s, mdl.B_eps)
             return [-Phi - eps * np.eye(n_e)] + region
 
-        blk = _blocks_of(lay, ["P", "We", "s"] + (["Qd"] if ndo else []), obs, "observer_region")
+        terms = ([_ndo_terms(mdl, _bzd(mdl, sc) / sc.d[:, None])] if ndo else []) + _observer_region_terms(mdl, oreg)
+        if not ndo:  # chapter 3's performance block: P and W_e as in (P A_e − W_e C_e)^s, sign −
+            terms = [{"P": [(I_e, -mdl.A_e)], "We": [(I_e, mdl.C_e)]}] + terms
+        blk = _blocks_of(lay, ["P", "We", "s"] + (["Qd"] if ndo else []), obs, "observer_region", terms=terms)
         blk[0].group = "performance"
         blocks += blk
     c = np.zeros(lay.m)
     c[lay.slots["g"][2]] = 1.0
     return lay, c, blocks
+
+
+def _observer_region_terms(mdl, oreg) -> list[dict]:
+    """Matrix-variable declarations of the observer's region blocks (``region_pattern`` with
+    N = (P A_e − W_e C_e)ᵀ = A_eᵀP − C_eᵀW_eᵀ, X = P): c·N in (p, q) is P's term
+    (c A_e in column block p, I in q) and W_e's term (−c I in q, C_e in p), which puts
+    −c W_eC_e in (q, p) and its transpose in (p, q); c·X in (p, p) is P's (I, c/2·I) in p."""
+    n_e = mdl.A_e.shape[0]
+    I_e = np.eye(n_e)
+    out = []
+    for nsub, entries in region_pattern(oreg):
+        P, We = [], []
+        for kind, c, p, q in entries:
+            if kind == "X":
+                P.append((_emb(n_e, nsub, n_e, p, I_e), _emb(n_e, nsub, n_e, p, c / 2 * I_e)))
+            else:
+                P.append((_emb(n_e, nsub, n_e, p, c * mdl.A_e), _emb(n_e, nsub, n_e, q, I_e)))
+                We.append((_emb(n_e, nsub, n_e, q, -c * I_e), _emb(mdl.C_e.shape[0], nsub, n_e, p, mdl.C_e)))
+        out.append({"P": P, "We": We})
+    return out
+
+
+def _ndo_terms(mdl, Bhat) -> dict:
+    """Matrix-variable declarations of ``_ndo_performance``'s block (rows ε_e, ε_d, ε̇_c): P as
+    −(P A_e)^s and W_e as +(W_e C_e)^s in (ε_e, ε_e); Q_d as 2Q_d in (ε_d, ε_d) and as B̂_kQ_d in
+    (ε̇_c, ε_d) with its transpose."""
+    n_e, n_q = mdl.A_e.shape[0], Bhat.shape[0]
+    n = n_e + 2 * n_q
+    Le = np.zeros((n_e, n))
+    Le[:, :n_e] = np.eye(n_e)
+    Re_P = np.zeros((n_e, n))
+    Re_P[:, :n_e] = -mdl.A_e
+    Re_W = np.zeros((mdl.C_e.shape[0], n))
+    Re_W[:, :n_e] = mdl.C_e
+    Ed = np.zeros((n_q, n))
+    Ed[:, n_e:n_e + n_q] = np.eye(n_q)
+    Lc = np.zeros((n_q, n))
+    Lc[:, n_e + n_q:] = Bhat.T
+    return {"P": [(Le, Re_P)], "We": [(Le, Re_W)], "Qd": [(Ed, Ed), (Lc, Ed)]}
 
 
 def _ndo_performance(V, PAs, mdl, Bhat, eps: float) -> np.ndarray:

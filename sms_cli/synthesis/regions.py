@@ -70,20 +70,36 @@ def region_lmis(cp, N, X, region: PoleRegion, eps: float) -> list:
     return cons
 
 
+def region_pattern(region: PoleRegion) -> list[tuple[int, list[tuple[str, float, int, int]]]]:
+    """The blocks of ``region_blocks`` (before −εI) as (number of n×n sub-blocks, entries): entry
+    ('N', c, p, q) puts c·N in sub-block (p, q) and c·Nᵀ in (q, p) (both in (p, p) when p = q),
+    ('X', c, p, p) puts c·X in (p, p)."""
+    out = [(1, [("N", -1.0, 0, 0), ("X", -2.0 * region.alpha, 0, 0)]),      # −(N + Nᵀ + 2αX)
+           (2, [("X", region.radius, 0, 0), ("X", region.radius, 1, 1),   # −[[−rX, N], [Nᵀ, −rX]]
+                ("N", -1.0, 0, 1)])]
+    if region.zeta_min > 0:  # −[[s(N + Nᵀ), c(N − Nᵀ)], [c(Nᵀ − N), s(N + Nᵀ)]]
+        theta = math.acos(region.zeta_min)
+        s, c = math.sin(theta), math.cos(theta)
+        out.append((2, [("N", -s, 0, 0), ("N", -s, 1, 1), ("N", -c, 0, 1), ("N", c, 1, 0)]))
+    return out
+
+
 def region_blocks(N: np.ndarray, X: np.ndarray, region: PoleRegion, eps: float) -> list[np.ndarray]:
     """The matrices of ``region_lmis`` as plain numpy, each required ⪰ 0, for stacks of N and X
     (shape (..., n, n)): −(N + Nᵀ + 2αX) − εI, −[[−rX, N], [Nᵀ, −rX]] − εI and, when ζ_min > 0,
-    −[[s(N + Nᵀ), c(N − Nᵀ)], [c(Nᵀ − N), s(N + Nᵀ)]] − εI."""
+    −[[s(N + Nᵀ), c(N − Nᵀ)], [c(Nᵀ − N), s(N + Nᵀ)]] − εI (``region_pattern``)."""
     n = X.shape[-1]
     Nt = np.swapaxes(N, -1, -2)
-    out = [-(N + Nt + 2 * region.alpha * X) - eps * np.eye(n)]
-    disk = np.block([[-region.radius * X, N], [Nt, -region.radius * X]])
-    out.append(-disk - eps * np.eye(2 * n))
-    if region.zeta_min > 0:
-        theta = math.acos(region.zeta_min)
-        s, c = math.sin(theta), math.cos(theta)
-        cone = np.block([[s * (N + Nt), c * (N - Nt)], [c * (Nt - N), s * (N + Nt)]])
-        out.append(-cone - eps * np.eye(2 * n))
+    out = []
+    for nsub, entries in region_pattern(region):
+        B = np.zeros(np.broadcast_shapes(N.shape, X.shape)[:-2] + (nsub * n, nsub * n))
+        for kind, c, p, q in entries:
+            if kind == "X":
+                B[..., p * n:(p + 1) * n, p * n:(p + 1) * n] += c * X
+            else:
+                B[..., p * n:(p + 1) * n, q * n:(q + 1) * n] += c * N
+                B[..., q * n:(q + 1) * n, p * n:(p + 1) * n] += c * Nt
+        out.append(B - eps * np.eye(nsub * n))
     return out
 
 

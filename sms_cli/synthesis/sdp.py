@@ -20,13 +20,24 @@ GᵀA_jiG = Σ_r λ_r ũ_rũ_rᵀ (ũ = Gᵀu) costs O(n²) per variable instead
 solver (Clarabel) factors a KKT system with a dense (n(n+1)/2)² block per PSD cone instead,
 which is what made the synthesis take tens of seconds.
 
+Matrix variables in Kronecker form (``matvar``): where a block declares that some variables are
+the entries of a matrix variable X entering as Σ_s (L_sᵀXR_s + R_sᵀXᵀL_s) (the chapter 4 LMI's
+P_ε, W_e and Q_d, declared by ``direct``), those variables' part of M is built from the
+products L_sG, R_sG without any scaled matrix GᵀA_iG: for P_ε (n_e(n_e+1)/2 = 1128 variables at
+Kraiem 2022's size) O(n_e⁴) per variable pair instead of O(n_e⁴ n²) through S. The products
+with S (residuals, the scaled adjoint) are applied matrix-free as Gᵀ(Σ_s L_sᵀXR_s + …)G.
+
 Accuracy of the Newton system (``_Schur``): M = SᵀS with S the scaled coefficients. While M
 is well conditioned it is formed and Cholesky-factored; once the step's own residual
 h − Sᵀ(SΔy) (evaluated through S, it is the primal residual the step leaves) exceeds a tenth
 of the current primal residual (or 1e-6 ‖b‖), the solver switches to a QR factorisation of S
-for the rest of the run. Near the optimum of the synthesis problems the NT scaling of the observer blocks
-(lightly damped flexible modes) reaches cond(G) ~ 1e3, cond(M) ~ 1e16: the formed M is then
-indefinite in floating point, and the Cholesky-only version stalled at a primal residual of
+for the rest of the run. With declared matrix variables the formed M's Cholesky factor (shifted
+until it factors) instead preconditions conjugate gradients on SᵀSΔy = h, whose products go
+through the blocks; only a system whose CG misses the target is solved by QR of the formed S,
+and CG is tried again at the next iteration (chapter 4 at the thesis's size: no QR step at
+|T| = 1; QR for 8 of about 60 systems at |T| = 3). Near the optimum of the synthesis problems
+the NT scaling of the observer blocks (lightly damped flexible modes) reaches cond(G) ~ 1e3,
+cond(M) ~ 1e16: the formed M is then indefinite in floating point, and the Cholesky-only version stalled at a primal residual of
 ~1e-3 from LMI size 37 on (with γ̃² 1 % above the optimum).
 
 Where even the QR route saturates (cond(S) ~ 1e15: from LMI size ~99 the gap stalls near 7e-7),
@@ -51,12 +62,14 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 # imported here, not lazily, so that scipy's own OpenBLAS is loaded before single_thread_blas
 # looks for the loaded BLAS libraries (a library loaded inside the block keeps its threads)
 from scipy.linalg import cho_factor, cho_solve, qr, solve_triangular
+
+from sms_cli.synthesis.matvar import MatrixTerm, PairSum, Stacked, coefficients
 
 
 _BLAS_NAMES = [("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
@@ -104,12 +117,15 @@ OPT_TOL = 1e-3  # relative optimality of cᵀx estimated from the multipliers (�
 
 @dataclass
 class LmiBlock:
-    """F(x) = F0 + Σ_i x[idx[i]] F[i] ⪰ 0 (F0 n×n, F k×n×n, all symmetric)."""
+    """F(x) = F0 + Σ_i x[idx[i]] F[i] ⪰ 0 (F0 n×n, F k×n×n, all symmetric). ``terms``: optional
+    declarations that some of the variables are a matrix variable's entries (``matvar``), which
+    the solver then handles in Kronecker form (F still holds their coefficients)."""
 
     idx: np.ndarray
     F0: np.ndarray
     F: np.ndarray
     group: str = ""
+    terms: list[MatrixTerm] = field(default_factory=list)
 
 
 @dataclass
@@ -125,11 +141,14 @@ class SdpResult:
     # runs that did not converge: ‖AX̂‖ of the last multipliers (``_farkas``): no point y of the
     # LMIs (solver's scaled variables) has ‖y‖ < 1/farkas; inf when X proves nothing
     farkas: float = np.inf
+    qr_steps: int = 0  # iterations whose Newton systems went through the QR factorisation of S
 
 
 class _Group:
-    """Blocks of equal size n and variable count k, stacked: C (nb, n, n), A (nb, k, n, n) in the
-    dual sign (Z = C − Σ_i y_idx[i] A_i), idx (nb, k)."""
+    """Blocks of equal size n and variable count k, stacked: C (nb, n, n), idx (nb, k). The
+    variables declared as matrix variables by every block alike (``mv``, ``matvar.Stacked``) are
+    kept in Kronecker form; the others ("rest", positions ``rest``, global ``ridx`` (nb, kr)) as
+    A (nb, kr, n, n) in the dual sign (Z = C − Σ_i y_idx[i] A_i)."""
 
     def __init__(self, blks: list[LmiBlock], rows: list[float], col: np.ndarray):
         self.n = blks[0].F0.shape[0]
@@ -137,14 +156,22 @@ class _Group:
         self.k = len(blks[0].idx)
         self.idx = np.stack([b.idx for b in blks]).astype(int)
         self.C = np.stack([r * (b.F0 + b.F0.T) / 2 for b, r in zip(blks, rows)])
-        self.A = np.stack([-r * (b.F + np.transpose(b.F, (0, 2, 1))) / 2 * col[b.idx][:, None, None]
-                           for b, r in zip(blks, rows)])
+        self.mv = self._common_terms(blks, rows, col)
+        rest = np.ones(self.k, dtype=bool)
+        for t in self.mv:
+            rest[t.pos] = False
+        self.rest = np.flatnonzero(rest)
+        self.ridx = self.idx[:, self.rest]
+        self.kr = len(self.rest)
+        self.fac: list = [(None, None)] * len(self.mv)  # (L G, R G) per matrix variable, set by ``scaled``
+        self.A = np.stack([-r * (b.F[self.rest] + np.transpose(b.F[self.rest], (0, 2, 1))) / 2
+                           * col[b.idx[self.rest]][:, None, None] for b, r in zip(blks, rows)])
         self.iu, self.ju = np.triu_indices(self.n)
         self.w = np.where(self.iu == self.ju, 1.0, np.sqrt(2.0))  # svec: ⟨X, Y⟩ = svec(X)·svec(Y)
         # low-rank factors A_i = Σ_r λ_r u_r u_rᵀ (P enters the observer blocks as PA + AᵀP:
         # rank ≤ 4 for any n), used by ``scaled`` when the rank is small against n
         self.lam = self.U = None
-        if self.n >= 8:
+        if self.n >= 8 and self.kr:
             lam, vec = np.linalg.eigh(self.A)
             big = np.abs(lam) > 1e-12 * np.max(np.abs(lam), axis=-1, keepdims=True)
             R = int(np.max(np.sum(big, axis=-1)))
@@ -153,21 +180,67 @@ class _Group:
                 self.lam = np.take_along_axis(lam, order, axis=-1)  # (nb, k, R)
                 self.U = np.swapaxes(np.take_along_axis(vec, order[..., None, :], axis=-1), -1, -2)  # (nb, k, R, n)
 
+    def _common_terms(self, blks: list[LmiBlock], rows: list[float], col: np.ndarray) -> list[Stacked]:
+        """The matrix variables every block of the group declares alike (same entries, same
+        global variables, same term count); none otherwise (all variables then stay dense)."""
+        b0 = blks[0]
+        for b in blks[1:]:
+            if len(b.terms) != len(b0.terms):
+                return []
+            for t, t0 in zip(b.terms, b0.terms):
+                if (t.sym != t0.sym or t.L.shape != t0.L.shape or t.R.shape != t0.R.shape
+                        or not np.array_equal(t.pos, t0.pos) or not np.array_equal(t.a, t0.a)
+                        or not np.array_equal(t.b, t0.b) or not np.array_equal(b.idx[t.pos], b0.idx[t0.pos])):
+                    return []
+        return [Stacked([b.terms[j] for b in blks], rows, col, b0.idx[t.pos].astype(int))
+                for j, t in enumerate(b0.terms)]
+
     def adjoint(self, y: np.ndarray, A: np.ndarray | None = None) -> np.ndarray:
-        """(nb, n, n): Σ_i y_i A_i per block (A: the scaled Ã when given)."""
-        A = self.A if A is None else A
-        nb, k, n = self.nb, self.k, self.n
-        return (y[self.idx][:, None, :] @ A.reshape(nb, k, n * n)).reshape(nb, n, n)
+        """(nb, n, n): Σ_i y_i A_i per block (scaled, Σ_i y_i Ã_i, when A = Ã of the rest is given;
+        the matrix variables' then from ``fac``)."""
+        nb, kr, n = self.nb, self.kr, self.n
+        out = np.zeros((nb, n, n))
+        if kr:
+            out = (y[self.ridx][:, None, :] @ (self.A if A is None else A).reshape(nb, kr, n * n)).reshape(nb, n, n)
+        if self.mv:
+            out = out + sum(t.adjoint(y, None if A is None else f) for t, f in zip(self.mv, self.fac))
+        return out
 
     def apply(self, X: np.ndarray, S: np.ndarray | None = None) -> np.ndarray:
-        """(nb, k): ⟨A_i, X_b⟩ (with S = svec(Ã) when given)."""
-        if S is None:
-            return (self.A.reshape(self.nb, self.k, -1) @ X.reshape(self.nb, -1, 1))[:, :, 0]
-        return (S @ (X[:, self.iu, self.ju] * self.w)[:, :, None])[:, :, 0]
+        """(nb, k): ⟨A_i, X_b⟩ (⟨Ã_i, X_b⟩ with S = svec(Ã) of the rest given; the matrix
+        variables' then from ``fac``)."""
+        out = np.empty((self.nb, self.k))
+        if not self.kr:
+            pass
+        elif S is None:
+            out[:, self.rest] = (self.A.reshape(self.nb, self.kr, -1) @ X.reshape(self.nb, -1, 1))[:, :, 0]
+        else:
+            out[:, self.rest] = (S @ (X[:, self.iu, self.ju] * self.w)[:, :, None])[:, :, 0]
+        for t, f in zip(self.mv, self.fac):
+            out[:, t.pos] = t.apply(X, None if S is None else f)
+        return out
+
+    def add_terms(self, M: np.ndarray, At: np.ndarray, sums: dict) -> None:
+        """The matrix variables' part of Σ_b S_b S_bᵀ: their pairs into ``sums`` (``PairSum`` per
+        pair of variables, shared by the groups, added to M by ``schur_matrix``), their cross
+        products with the rest's scaled At into M."""
+        fac = self.fac
+        for u, (tu, fu) in enumerate(zip(self.mv, fac)):
+            for tv, fv in zip(self.mv[u:], fac[u:]):
+                key = (int(tu.gidx[0]), int(tv.gidx[0]))
+                if key not in sums:
+                    sums[key] = PairSum(tu, tv)
+                sums[key].add(fu, fv)
+            if self.kr:
+                X = tu.cross(*fu, At)  # (nb, p, kr)
+                np.add.at(M, (tu.gidx[None, :, None], self.ridx[:, None, :]), X)
+                np.add.at(M, (self.ridx[:, :, None], tu.gidx[None, None, :]), np.swapaxes(X, 1, 2))
 
     def scaled(self, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Ã = GᵀAG (nb, k, n, n) and svec(Ã) (nb, k, n(n+1)/2)."""
-        nb, k, n = self.nb, self.k, self.n
+        """Ã = GᵀAG (nb, kr, n, n) and svec(Ã) (nb, kr, n(n+1)/2) of the rest; the matrix
+        variables' scaled factors (L G, R G) are kept as ``fac`` for this G."""
+        self.fac = [t.scaled_factors(G) for t in self.mv]
+        nb, k, n = self.nb, self.kr, self.n
         if self.U is not None:  # Ã_i = Σ_r λ_r ũ_r ũ_rᵀ, ũ = Gᵀu: O(n²R) per variable, not O(n³)
             R = self.U.shape[2]
             Ut = (self.U.reshape(nb, k * R, n) @ G).reshape(nb, k, R, n)
@@ -178,25 +251,48 @@ class _Group:
         return T, T[:, :, self.iu, self.ju] * self.w
 
     def add_gram(self, M: np.ndarray, S: np.ndarray) -> None:
-        """M[idx_b, idx_b] += S_b S_bᵀ for every block b (S = svec(Ã), (nb, k, p))."""
-        if self.k * self.k * self.nb <= 4096:
-            np.add.at(M, (self.idx[:, :, None], self.idx[:, None, :]), S @ np.transpose(S, (0, 2, 1)))
+        """M[ridx_b, ridx_b] += S_b S_bᵀ for every block b (S = svec(Ã) of the rest, (nb, kr, p))."""
+        if self.kr * self.kr * self.nb <= 4096:
+            np.add.at(M, (self.ridx[:, :, None], self.ridx[:, None, :]), S @ np.transpose(S, (0, 2, 1)))
             return
         for b in range(self.nb):
-            M[np.ix_(self.idx[b], self.idx[b])] += S[b] @ S[b].T  # numpy calls syrk for A Aᵀ
+            M[np.ix_(self.ridx[b], self.ridx[b])] += S[b] @ S[b].T  # numpy calls syrk for A Aᵀ
+
+
+def schur_matrix(gs: list[_Group], St: list[np.ndarray], m: int, At: list[np.ndarray]) -> np.ndarray:
+    """The formed M = SᵀS (m×m): Gram matrices of the rest's svec(Ã) plus, per group with matrix
+    variables, their Kronecker-form part (At/St: the rest's Ã and svec(Ã) from ``_Group.scaled``)."""
+    M = np.zeros((m, m))
+    sums: dict = {}
+    for q, (g, S) in enumerate(zip(gs, St)):
+        g.add_gram(M, S)
+        if g.mv:
+            g.add_terms(M, At[q], sums)
+    for ps in sums.values():
+        Muv = ps.matrix()
+        M[np.ix_(ps.u.gidx, ps.v.gidx)] += Muv
+        if ps.u.gidx[0] != ps.v.gidx[0]:
+            M[np.ix_(ps.v.gidx, ps.u.gidx)] += Muv.T
+    return M
 
 
 class _Schur:
     """The Newton system M Δy = h, M = SᵀS, S the (Σ n(n+1)/2) × m matrix whose column i
-    stacks svec(G_jᵀA_jiG_j) over the blocks j (kept per group; formed whole only for 'qr').
+    stacks svec(G_jᵀA_jiG_j) over the blocks j (kept per group, for the dense "rest" variables
+    only; formed whole only for 'qr').
 
-    Residuals h − Sᵀ(SΔy) are always evaluated through S, never through a formed M. Method
-    'chol': Cholesky of the formed M. Method 'qr': S = QR (Householder, R only) and the
-    corrected semi-normal equations RᵀR Δy = h, whose accuracy depends on cond(S) =
-    cond(M)^½ (about twice the cost of forming M). Either is refined through S (``solve``)."""
+    Residuals h − Sᵀ(SΔy) are always evaluated through the scaled blocks (``matvec``), never
+    through a formed M. Method 'chol': Cholesky of the formed M (the matrix variables' part in
+    Kronecker form, ``_Group.add_terms``). Method 'qr': S = QR (Householder, R only) and the
+    corrected semi-normal equations RᵀR Δy = h, whose accuracy depends on cond(S) = cond(M)^½
+    (about twice the cost of forming M; the matrix variables' columns of S are formed for it
+    only). Either is refined through S (``solve``): by plain iterative refinement, or, for
+    'chol' with matrix variables, by conjugate gradients preconditioned with the Cholesky factor."""
 
-    def __init__(self, gs: list[_Group], St: list[np.ndarray], m: int, method: str):
-        self.gs, self.St, self.m, self.method = gs, St, m, method
+    def __init__(self, gs: list[_Group], St: list[np.ndarray], m: int, method: str,
+                 At: list[np.ndarray] | None = None):
+        self.gs, self.St, self.m, self.method, self.At = gs, St, m, method, At
+        self.cg = any(g.mv for g in gs)
         if method == "qr":
             rows = sum(g.nb * S.shape[2] for g, S in zip(gs, St))
             Sf = np.zeros((rows, m))
@@ -204,7 +300,10 @@ class _Schur:
             for g, S in zip(gs, St):
                 p = S.shape[2]
                 for b in range(g.nb):
-                    Sf[r0:r0 + p, g.idx[b]] = S[b].T
+                    Sf[r0:r0 + p, g.ridx[b]] = S[b].T
+                    for t, (LG, RG) in zip(g.mv, g.fac):  # the matrix variables' columns, formed here only
+                        At_b = coefficients(MatrixTerm(t.pos, t.a, t.b, t.sym, LG[b], RG[b]))
+                        Sf[r0:r0 + p, t.gidx] = (At_b[:, g.iu, g.ju] * g.w * t.col[:, None]).T
                     r0 += p
             self.R = qr(Sf, mode="r", overwrite_a=True, check_finite=False)[0][:m]
             d = np.diag(self.R)
@@ -216,18 +315,34 @@ class _Schur:
             small = np.abs(d) < floor
             self.R[small, small] = floor
         else:
-            M = np.zeros((m, m))
-            for g, S in zip(gs, St):
-                g.add_gram(M, S)
-            M[np.diag_indices(m)] += 1e-15 * np.max(np.diag(M))
-            self.cf = cho_factor(M, check_finite=False)
+            M = schur_matrix(gs, St, m, At)
+            top = np.max(np.diag(M))
+            M[np.diag_indices(m)] += 1e-15 * top
+            if not self.cg:
+                self.cf = cho_factor(M, check_finite=False)
+                return
+            # the formed M is only the preconditioner here: when round-off makes it indefinite,
+            # shift it until it factors (CG through S recovers the accuracy)
+            for shift in (0.0, 1e-13, 1e-11, 1e-9, 1e-7):
+                try:
+                    if shift:
+                        M[np.diag_indices(m)] += shift * top
+                    self.cf = cho_factor(M, check_finite=False)
+                    return
+                except np.linalg.LinAlgError:
+                    continue
+            raise np.linalg.LinAlgError("Schur complement not positive definite")
 
     def matvec(self, v: np.ndarray) -> np.ndarray:
         """SᵀS v, group by group."""
         out = np.zeros(self.m)
-        for g, S in zip(self.gs, self.St):
-            u = v[g.idx][:, None, :] @ S
-            np.add.at(out, g.idx, (S @ np.transpose(u, (0, 2, 1)))[:, :, 0])
+        for q, (g, S) in enumerate(zip(self.gs, self.St)):
+            if g.mv:  # ⟨Ã_i, Σ_k v_k Ã_k⟩ through the blocks (the matrix variables' S is never formed)
+                Zt = g.adjoint(v, self.At[q])
+                np.add.at(out, g.idx, g.apply(Zt, S))
+                continue
+            u = v[g.ridx][:, None, :] @ S
+            np.add.at(out, g.ridx, (S @ np.transpose(u, (0, 2, 1)))[:, :, 0])
         return out
 
     def _base(self, h: np.ndarray) -> np.ndarray:
@@ -236,12 +351,16 @@ class _Schur:
             return solve_triangular(self.R, w, check_finite=False)
         return cho_solve(self.cf, h, check_finite=False)
 
-    def solve(self, h: np.ndarray, target: float = 0.0, refine: int = 2) -> tuple[np.ndarray, float]:
+    def solve(self, h: np.ndarray, target: float = 0.0, refine: int = 2,
+              cg_target: float = 0.0) -> tuple[np.ndarray, float]:
         """(Δy, ‖h − SᵀSΔy‖), refined through S until the residual is below ``target`` (at most
-        ``refine`` times)."""
+        ``refine`` times); with matrix variables ('chol'), conjugate-gradient steps (at most
+        ``CG_MAX``, each two products with S, so stopped at the looser ``cg_target``)."""
         dy = self._base(h)
         r = h - self.matvec(dy)
         err = float(np.linalg.norm(r))
+        if self.cg and self.method == "chol":
+            return self._pcg(h, dy, r, err, max(target, cg_target))
         for _ in range(refine):
             if err <= target:
                 break
@@ -250,24 +369,43 @@ class _Schur:
             err = float(np.linalg.norm(r))
         return dy, err
 
+    def _pcg(self, h, dy, r, err, target):
+        """Conjugate gradients on SᵀSΔy = h from dy, preconditioned by the formed M's Cholesky
+        factor; returns the iterate with the smallest true residual (recomputed through S)."""
+        best = (err, dy)
+        z = self._base(r)
+        p = z.copy()
+        rz = float(r @ z)
+        for k in range(CG_MAX):
+            if err <= target or rz <= 0:
+                break
+            w = self.matvec(p)
+            pw = float(p @ w)
+            if not pw > 0:
+                break
+            alpha = rz / pw
+            dy = dy + alpha * p
+            r = r - alpha * w  # recursive residual; the true one (through S) when it looks done
+            err = float(np.linalg.norm(r))
+            if err <= target or k % 10 == 9 or k == CG_MAX - 1:
+                r = h - self.matvec(dy)
+                err = float(np.linalg.norm(r))
+                if err < best[0]:
+                    best = (err, dy)
+            z = self._base(r)
+            rz_new = float(r @ z)
+            p = z + (rz_new / rz) * p
+            rz = rz_new
+        return best[1], best[0]
 
-def solve_lmi(c: np.ndarray, blocks: list[LmiBlock], tol: float = 1e-8, max_iter: int = 100,
-              verbose: bool = False, method: str = "auto") -> SdpResult:
-    """Minimise cᵀx subject to every block ⪰ 0 (see the module docstring).
 
-    method: 'auto' (Cholesky of the Schur complement, QR of its factor from the first step
-    whose residual is too large) or 'qr' (QR throughout). On an infeasible problem the iterates
-    grow without bound; the run stops on non-finite residuals with status 'failed', so numpy's
-    overflow warnings on the way are silenced rather than shown to the user."""
-    with np.errstate(over="ignore"):
-        return _solve_lmi(c, blocks, tol, max_iter, verbose, method)
+CG_MAX = 60  # conjugate-gradient steps per Newton system (matrix variables only)
 
 
-def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
-    if method not in ("auto", "qr"):
-        raise ValueError(f"unknown method {method!r}")
-    t0 = time.perf_counter()
-    m = len(c)
+def groups(blocks: list[LmiBlock], m: int, declared: bool = True) -> tuple[list[_Group], np.ndarray]:
+    """The blocks grouped by (size, variable count) after the exact rescalings (each block by a
+    positive factor, each variable by a positive factor ``col``); ``declared``: use the blocks'
+    matrix-variable declarations (else every variable is dense)."""
     # exact rescalings: each block by a positive factor, each variable by a positive factor
     row = [1.0 / max(np.sqrt(np.sum(b.F0**2) + np.sum(b.F**2)), 1e-300) for b in blocks]
     col2 = np.zeros(m)
@@ -276,10 +414,36 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     if np.any(col2 <= 0):
         raise ValueError("a variable appears in no LMI block")
     col = 1.0 / np.sqrt(col2)
+    if not declared:
+        blocks = [LmiBlock(b.idx, b.F0, b.F, b.group) for b in blocks]
     by_shape: dict[tuple[int, int], list[int]] = {}
     for j, b in enumerate(blocks):
         by_shape.setdefault((b.F0.shape[0], len(b.idx)), []).append(j)
     gs = [_Group([blocks[j] for j in js], [row[j] for j in js], col) for js in by_shape.values()]
+    return gs, col
+
+
+def solve_lmi(c: np.ndarray, blocks: list[LmiBlock], tol: float = 1e-8, max_iter: int = 100,
+              verbose: bool = False, method: str = "auto") -> SdpResult:
+    """Minimise cᵀx subject to every block ⪰ 0 (see the module docstring).
+
+    method: 'auto' (Cholesky of the Schur complement, QR of its factor from the first step
+    whose residual is too large; with blocks declaring matrix variables, their part of the
+    Schur complement in Kronecker form and conjugate gradients instead of QR), 'dense' (as
+    'auto' with the declarations ignored) or 'qr' (QR throughout, declarations ignored). On an
+    infeasible problem the iterates
+    grow without bound; the run stops on non-finite residuals with status 'failed', so numpy's
+    overflow warnings on the way are silenced rather than shown to the user."""
+    with np.errstate(over="ignore"):
+        return _solve_lmi(c, blocks, tol, max_iter, verbose, method)
+
+
+def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
+    if method not in ("auto", "dense", "qr"):
+        raise ValueError(f"unknown method {method!r}")
+    t0 = time.perf_counter()
+    m = len(c)
+    gs, col = groups(blocks, m, declared=method == "auto")
     bvec = -np.asarray(c, dtype=float) * col
     bscale = max(1.0, float(np.linalg.norm(bvec)))
     bvec = bvec / bscale
@@ -293,6 +457,8 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     gap = pinf = dinf = np.inf
     ng = len(gs)
     use_qr = method == "qr"
+    qr_steps = 0
+    schur_cg = any(g.mv for g in gs)  # matrix variables: CG through S before any QR
     best: tuple = (np.inf, np.inf, np.inf, 0, None)  # (gap, pinf, dinf, iteration, y) of the best iterate
     history: list[float] = []
     mus: list[float] = []
@@ -354,13 +520,13 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             St.append(S)
         Rdt = [tr(G[q]) @ Rd[q] @ G[q] for q in range(ng)]
         try:
-            schur = _Schur(gs, St, m, "qr" if use_qr else "chol")
+            schur = _Schur(gs, St, m, "qr" if use_qr else "chol", At)
         except (np.linalg.LinAlgError, ValueError):
             if use_qr:
                 break
             use_qr = True
             try:
-                schur = _Schur(gs, St, m, "qr")
+                schur = _Schur(gs, St, m, "qr", At)
             except (np.linalg.LinAlgError, ValueError):
                 break
 
@@ -372,10 +538,10 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             # the residual is exactly the primal residual the step leaves: keep it below a tenth
             # of the current one (or far below OPT_TOL), else switch to the QR factorisation
             target = max(0.1 * float(np.linalg.norm(Rp)), 1e-3 * OPT_TOL * normb)
-            dy, err = schur.solve(h, 1e-3 * target)
+            dy, err = schur.solve(h, 1e-3 * target, cg_target=0.1 * target)
             if not use_qr and err > target:
                 use_qr = True
-                schur = _Schur(gs, St, m, "qr")
+                schur = _Schur(gs, St, m, "qr", At)
                 dy, err = schur.solve(h, 1e-3 * target)
             dZt = [Rdt[q] - g.adjoint(dy, At[q]) for q, g in enumerate(gs)]
             dXt = [Rct[q] - dZt[q] for q in range(ng)]
@@ -423,8 +589,12 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             Z[q] = Z[q] + ad * (Rd[q] - g.adjoint(dy))
             Z[q] = (Z[q] + tr(Z[q])) / 2
         y = y + ad * dy
+        qr_steps += use_qr
+        if schur_cg and method != "qr":  # with matrix variables QR is per iteration: CG is retried
+            use_qr = False
         if verbose:
-            print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {'qr' if use_qr else 'chol'}")
+            how = "qr" if use_qr else "chol+cg" if schur_cg else "chol"
+            print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {how}")
         if max(ap, ad) < 1e-8:
             break
     if status != "optimal":
@@ -437,7 +607,7 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         Fx = b.F0 + np.einsum("k,kab->ab", x[b.idx], b.F)
         nrm = max(np.linalg.norm(b.F0), 1e-300) if len(b.idx) == 0 else max(np.linalg.norm(Fx), 1e-300)
         worst = min(worst, float(np.min(np.linalg.eigvalsh((Fx + Fx.T) / 2))) / nrm)
-    return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0, farkas)
+    return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0, farkas, qr_steps)
 
 
 def _farkas(gs: list[_Group], X: list[np.ndarray], m: int) -> float:

@@ -1,0 +1,174 @@
+"""Matrix variables of LMI blocks (``sdp.LmiBlock.terms``) and their part of the interior-point
+Schur complement in Kronecker form, without the scaled coefficient matrices.
+
+A matrix variable X (r×c, symmetric when ``sym``) enters a block of size n as
+
+    F_X(X) = Σ_s (L_sᵀ X R_s + R_sᵀ Xᵀ L_s)          L_s (r×n), R_s (c×n)
+
+and its scalar variables are X's entries: the basis E = e_a e_bᵀ, or e_a e_bᵀ + e_b e_aᵀ for a
+symmetric X with a < b (the upper-triangle parameterisation of ``direct.Layout``). With the NT
+scaling G of the block and W = G Gᵀ, for U = e_a e_bᵀ of X (terms L, R) and V = e_c e_dᵀ of Y
+(terms L', R'), expanding tr(W F_X(U) W F_Y(V)) gives four products that pair up by
+transposition (tr(Z) = tr(Zᵀ), W symmetric)::
+
+    ⟨GᵀF_X(U)G, GᵀF_Y(V)G⟩ = 2 Σ_st [(R_s W L'_tᵀ)_bc (R'_t W L_sᵀ)_da + (R_s W R'_tᵀ)_bd (L'_t W L_sᵀ)_ca]
+
+so the X–Y part of the Schur complement costs O(S² r c r' c') from the r×n products R G, L G,
+instead of O(r c · r' c' · n²) through the scaled matrices GᵀF_X(E)G. Against any other
+coefficient matrix (scaled Ã = GᵀAG): ⟨GᵀF_X(U)G, Ã⟩ = 2 Σ_s (R_s G Ã Gᵀ L_sᵀ)_ba.
+Units: whatever the block's are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class MatrixTerm:
+    """Declaration: the block variables at ``pos`` (positions in ``LmiBlock.idx``) are the entries
+    (a[j], b[j]) of one matrix variable entering as Σ_s (L_sᵀ X R_s + R_sᵀ Xᵀ L_s); L (S, r, n),
+    R (S, c, n); ``sym``: X symmetric with a ≤ b (basis e_a e_bᵀ + e_b e_aᵀ off the diagonal)."""
+
+    pos: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    sym: bool
+    L: np.ndarray
+    R: np.ndarray
+
+
+def coefficients(t: MatrixTerm) -> np.ndarray:
+    """(p, n, n): F_X(E_j) for every declared entry (the dense coefficients the term stands for)."""
+    La, Rb = t.L[:, t.a], t.R[:, t.b]  # (S, p, n)
+    F = np.einsum("spi,spj->pij", La, Rb)
+    if t.sym:
+        off = (t.a != t.b).astype(float)[:, None, None]
+        F = F + off * np.einsum("spi,spj->pij", t.L[:, t.b], t.R[:, t.a])
+    return F + np.swapaxes(F, 1, 2)
+
+
+def check(t: MatrixTerm, F: np.ndarray, rtol: float = 1e-10, probes: int = 2) -> None:
+    """Raise ValueError unless the declaration reproduces the block's coefficients F (p, n, n):
+    Σ_j x_j F_j against F_X(X) at random x (a linear map that agrees at random points agrees
+    everywhere, with probability 1; O(p n²) instead of forming every coefficient)."""
+    rng = np.random.default_rng(0)
+    r, c = t.L.shape[1], t.R.shape[1]
+    for _ in range(probes):
+        x = rng.normal(size=len(t.pos))
+        X = np.zeros((r, c))
+        X[t.a, t.b] += x
+        if t.sym:
+            off = t.a != t.b
+            X[t.b[off], t.a[off]] += x[off]
+        D = np.einsum("sri,rc,scj->ij", t.L, X, t.R)
+        D = D + D.T
+        Fx = np.tensordot(x, F, axes=1)
+        scale = max(float(np.max(np.abs(Fx))), 1e-300)
+        err = float(np.max(np.abs(D - Fx)))
+        if err > rtol * scale * np.sqrt(len(t.pos)):
+            raise ValueError(f"matrix-variable declaration does not match the block (error {err / scale:.1e})")
+
+
+class Stacked:
+    """One declared matrix variable over the nb blocks of a solver group (same entries, same
+    global variables): L (nb, S, r, n), R (nb, S, c, n) with R multiplied by the block's sign and
+    row scaling (the group's A = −row·col·F), col (p,) the variables' column scaling."""
+
+    def __init__(self, terms: list[MatrixTerm], rows: list[float], col: np.ndarray, gidx: np.ndarray):
+        t0 = terms[0]
+        self.pos, self.a, self.b, self.sym = t0.pos, t0.a, t0.b, t0.sym
+        self.r, self.c = t0.L.shape[1], t0.R.shape[1]
+        self.L = np.stack([t.L for t in terms])
+        self.R = np.stack([-r * t.R for t, r in zip(terms, rows)])
+        self.gidx = gidx
+        self.col = col[gidx]
+        # entry weights: a symmetric X's diagonal entry is one ordered pair, not two
+        self.half = np.where(self.sym & (self.a == self.b), 0.5, 1.0)
+
+    def matrix(self, y: np.ndarray) -> np.ndarray:
+        """X (r, c) of the variables y (solver's scaled units)."""
+        X = np.zeros((self.r, self.c))
+        v = y[self.gidx] * self.col
+        np.add.at(X, (self.a, self.b), v)
+        if self.sym:
+            off = self.a != self.b
+            np.add.at(X, (self.b[off], self.a[off]), v[off])
+        return X
+
+    def adjoint(self, y: np.ndarray, fac: tuple | None = None) -> np.ndarray:
+        """(nb, n, n): Σ_j y_j A_j over this variable's entries (Σ_j y_j Ã_j with fac = (L G, R G):
+        products of the scaled factors, as accurate as the scaled Ã_j themselves; Gᵀ(Σ y_jA_j)G
+        would lose cond(G)²)."""
+        L, R = (self.L, self.R) if fac is None else fac
+        X = self.matrix(y)
+        T = np.swapaxes(L, -1, -2) @ (X @ R)  # (nb, S, n, n)
+        T = T.sum(axis=1)
+        return T + np.swapaxes(T, 1, 2)
+
+    def _pick(self, Y: np.ndarray) -> np.ndarray:
+        """2·Y[..., b, a] (+ Y[..., a, b] off a symmetric X's diagonal) · col: the entries'
+        inner products from Y = Σ_s R_s Z L_sᵀ (last two axes c×r)."""
+        v = Y[..., self.b, self.a]
+        if self.sym:
+            v = v + (self.a != self.b) * Y[..., self.a, self.b]
+        return 2.0 * v * self.col
+
+    def apply(self, V: np.ndarray, fac: tuple | None = None) -> np.ndarray:
+        """(nb, p): ⟨A_j, V_b⟩ for symmetric V (nb, n, n) (⟨Ã_j, V_b⟩ with fac = (L G, R G))."""
+        L, R = (self.L, self.R) if fac is None else fac
+        Y = (R @ V[:, None]) @ np.swapaxes(L, -1, -2)  # (nb, S, c, r)
+        return self._pick(Y.sum(axis=1))
+
+    def scaled_factors(self, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """L G, R G (nb, S, ·, n)."""
+        return self.L @ G[:, None], self.R @ G[:, None]
+
+    def cross(self, LG: np.ndarray, RG: np.ndarray, At: np.ndarray) -> np.ndarray:
+        """(nb, p, k): ⟨Ã_j, Ã_k⟩ between this variable's entries and other scaled coefficient
+        matrices At (nb, k, n, n)."""
+        Y = np.einsum("bsxi,bkij,bsyj->bkxy", RG, At, LG, optimize=True)  # Σ_s R_sGÃGᵀL_sᵀ (c×r)
+        return np.swapaxes(self._pick(Y), 1, 2)
+
+
+class PairSum:
+    """Σ over groups and blocks of the Kronecker products of ``pair``'s formula for the entries of
+    two matrix variables u, v, kept as the two raw products (layouts [b, c, d, a] and [b, d, c, a])
+    so that the rearrangement into the m×m matrix is done once per variable pair, not per group:
+    the factors of every block and term pair are stacked and multiplied in one product each."""
+
+    def __init__(self, u: "Stacked", v: "Stacked"):
+        self.u, self.v = u, v
+        self.f1: list = []
+        self.f2: list = []
+
+    def add(self, U: tuple, V: tuple) -> None:
+        """Add one group's products; U = (L G, R G) of u (nb, S, ·, n), V of v."""
+        LGu, RGu = U
+        LGv, RGv = V
+        tr = lambda a: np.swapaxes(a, -1, -2)  # noqa: E731
+        u, v = self.u, self.v
+        A1 = RGu[:, :, None] @ tr(LGv)[:, None]          # (nb, s, t, c_u, r_v): R_s W L'_tᵀ [b, c]
+        A2 = RGv[:, :, None] @ tr(LGu)[:, None]          # (nb, t, s, c_v, r_u): R'_t W L_sᵀ [d, a]
+        self.f1.append((A1.reshape(-1, u.c * v.r), np.swapaxes(A2, 1, 2).reshape(-1, v.c * u.r)))
+        B = RGu[:, :, None] @ tr(RGv)[:, None]           # R_s W R'_tᵀ [b, d]
+        C = LGv[:, :, None] @ tr(LGu)[:, None]           # (nb, t, s, r_v, r_u): L'_t W L_sᵀ [c, a]
+        self.f2.append((B.reshape(-1, u.c * v.c), np.swapaxes(C, 1, 2).reshape(-1, v.r * u.r)))
+
+    def matrix(self) -> np.ndarray:
+        """(p_u, p_v): Σ ⟨Ã_i, Ã_j⟩ for the entries i of u and j of v, each entry of a symmetric
+        variable summed over its two ordered pairs."""
+        u, v = self.u, self.v
+        T1 = np.concatenate([f[0] for f in self.f1]).T @ np.concatenate([f[1] for f in self.f1])
+        T2 = np.concatenate([f[0] for f in self.f2]).T @ np.concatenate([f[1] for f in self.f2])
+        T = (T1.reshape(u.c, v.r, v.c, u.r).transpose(3, 0, 1, 2)
+             + T2.reshape(u.c, v.c, v.r, u.r).transpose(3, 0, 2, 1))  # [a, b, c, d]
+        Tu = T[u.a, u.b]
+        if u.sym:
+            Tu = Tu + T[u.b, u.a]
+        M = Tu[:, v.a, v.b]
+        if v.sym:
+            M = M + Tu[:, v.b, v.a]
+        return 2.0 * M * np.outer(u.col * u.half, v.col * v.half)
