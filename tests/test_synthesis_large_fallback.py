@@ -43,3 +43,16 @@ def test_a_small_lmi_still_falls_back_to_clarabel(monkeypatch):
     with pytest.raises(RuntimeError, match="Clarabel reached"):
         lmi.synthesize(req)
     assert called
+
+
+def test_a_run_that_stops_halving_its_gap_is_stopped():
+    """The stall rule of sdp.py: STALL_ITERATIONS iterations without halving the gap, at any gap (the full PULSAR's
+    chapter 4 problem sat at 1.5e-2 with steps of 1e-6 until max_iter before it)."""
+    from sms_cli.synthesis.sdp import STALL_ITERATIONS, stalled
+
+    n = STALL_ITERATIONS
+    assert not stalled([1.0] * n)  # too few iterations to tell
+    assert stalled([1.0] + [0.6] * n)  # 0.6 > 0.5: not halved over the window
+    assert not stalled([1.0] + [0.6] * (n - 1) + [0.49])  # halved on the last one
+    assert not stalled([2.0 ** -k for k in range(3 * n)])  # a converging run
+    assert stalled([1e-2] * (n + 1))
