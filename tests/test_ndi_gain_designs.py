@@ -3,22 +3,13 @@ refusals of contradictory inputs, on the flagship's model."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from sms_cli.errors import InputError
-from sms_cli.mission.load import load_mission
-from sms_cli.model import compile_system
 from sms_cli.sim.laws.ndi_gains import kalman_gain, ndo_gain
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def pulsar():
-    return compile_system(load_mission(ROOT / "missions" / "pulsar_simple.yaml"))
+from test_compiled_ndi import pulsar  # noqa: F401  (the flagship's model, a module fixture)
 
 
 def test_the_kalman_observer_is_stable_and_damps_more_with_more_process_noise(pulsar):

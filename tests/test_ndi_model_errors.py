@@ -4,22 +4,13 @@ the flagship's model (pulsar_simple: 15 DoF + 10 modes, a tile payload)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from sms_cli.mission.load import load_mission
-from sms_cli.model import compile_system
 from sms_cli.model.model_errors import follow_payloads, law_model
 import sms_cli.sim.compiled.ndi_law as K
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def pulsar():
-    return compile_system(load_mission(ROOT / "missions" / "pulsar_simple.yaml"))
+from test_compiled_ndi import pulsar  # noqa: F401  (the flagship's model, a module fixture)
 
 
 def _state(sm, seed):
