@@ -39,6 +39,8 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
             groups.append(momentum_calls())
         if getattr(loop, "thr", None) is not None:  # real thrusters: their step and the runner's own kernel calls
             groups.append(loop.thr.warm_calls())
+        if loop is not None and sm.n_modes:  # the final state's momenta, modes included (every run)
+            groups.append([modal_momenta_call(sm, loop_tree, loop.modal)])
     else:
         if plant is not None:
             groups += plant.warm_calls(stops=stops)
@@ -58,6 +60,17 @@ def kernel_groups(sm, *, loop_tree: tuple | None = None, plant=None, stops: bool
             groups[-1].append(KernelCall("sms_cli.sim.compiled.disturbances:disturbance_wrenches", (
                 np.zeros((1, 10)), np.zeros(1), sm.q0.astype(float)[None].copy(), np.empty((1, 6))), cost=0.3))
     return groups
+
+
+def modal_momenta_call(sm, tree: tuple, modal: tuple) -> KernelCall:
+    """``modal.modal_sample_momenta`` on one throw-away sample, as ``CompiledSimulation._modal_momenta`` calls it
+    (the final state's momenta of a run with modes, and its recorded samples'); ``modal``: the loop's
+    (B, Bᵀ, BᵀB, −ω², −2ζω)."""
+    q, ne = sm.q0.astype(float)[None].copy(), sm.n_modes
+    return KernelCall("sms_cli.sim.compiled.modal:modal_sample_momenta", (
+        tree[0], tree[1], tree[2], tree[5], tree[7], tree[8], tree[9], tree[3], tree[4], tree[10], tree[11], modal[0],
+        modal[3], q, np.zeros((1, sm.nv)), np.zeros((1, ne)), np.zeros((1, ne)), np.empty((1, 10)),
+        np.empty((0, sm.nx, sm.nx))), cost=3.0)
 
 
 def held_reactions_call(sm, tree: tuple) -> KernelCall:

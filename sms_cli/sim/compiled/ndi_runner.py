@@ -179,6 +179,7 @@ class NdiCompiledSimulation(CompiledSimulation):
         momenta and encoding."""
         from sms_cli.recording.encoding import warm_call
         from sms_cli.sim.compiled.dynamics import workspace
+        from sms_cli.sim.compiled.kernels import modal_momenta_call
         from sms_cli.sim.compiled.stops import EV_COLS
         from sms_cli.sim.compiled.warmup import KernelCall
         from sms_cli.sim.laws.ndi import ndi_warm_calls
@@ -221,10 +222,7 @@ class NdiCompiledSimulation(CompiledSimulation):
                 np.empty((0, nw)), e1, np.empty((0, 3 * (nw + n_arm))), e1, np.empty((0, sm.nq)), np.empty((0, sm.nv)), np.empty((0, ne)), np.empty((0, ne)),
                 np.empty((0, nw)), np.empty((0, EV_COLS)), np.zeros(1, dtype=np.int64)), cost=8.0),
         ]
-        tr = self.kinematics.tree  # the final state's momenta (every run) and the recording's
-        momenta = [KernelCall(f"{mod}.modal:modal_sample_momenta", (
-            tr[0], tr[1], tr[2], tr[5], tr[7], tr[8], tr[9], tr[3], tr[4], tr[10], tr[11], B, no2, q[None].copy(), v[None].copy(),
-            eta[None].copy(), ed[None].copy(), np.empty((1, 10)), np.empty((0, sm.nx, sm.nx))), cost=3.0)]
+        momenta = [modal_momenta_call(sm, self.kinematics.tree, self.modal)]  # the final state's and the recording's
         if self.rec is not None:
             momenta += [self.kinematics.warm_call(), warm_call()]
             if sm.wheels:
