@@ -166,6 +166,26 @@ def test_augmented_terms_equal_the_system_model(pulsar):
         assert out[0, 9] == pytest.approx(sm.energy(q, v, eta, ed), rel=1e-12)
 
 
+def test_actuator_dynamics_is_the_schur_complement_and_reduced_bias_needs_no_second_solve(pulsar):
+    """M◇ = M_aa − M_au M_uu⁻¹ M_ua and n = r_a − M_au M_uu⁻¹ r_u (Kraiem 2022 (3.33)–(3.35)) against numpy's
+    solves on the flagship's mass matrix; ``reduced_bias`` of another r at the same M (the tick's linearising
+    torque) equals n of a fresh solve: the law solves M_uu once per tick."""
+    sm = pulsar
+    ix = sm.reduced.ix
+    sets = (ix.base_linear, ix.base_angular, ix.actuators, ix.flexible)
+    a, u = ix.actuators, np.r_[ix.base_linear, ix.base_angular, ix.flexible]
+    rng = np.random.default_rng(11)
+    for seed in range(3):
+        q, *_ = _state(sm, seed)
+        M = sm.mass_matrix(q)
+        r, r2 = rng.normal(size=sm.nx), rng.normal(size=sm.nx)
+        M_dia, n_term, sol = K.actuator_dynamics(M, r, *sets)
+        Mau = M[np.ix_(a, u)]
+        assert _close(M_dia, M[np.ix_(a, a)] - Mau @ np.linalg.solve(M[np.ix_(u, u)], M[np.ix_(u, a)]), 1e-10)
+        assert _close(n_term, r[a] - Mau @ np.linalg.solve(M[np.ix_(u, u)], r[u]), 1e-10)
+        assert _close(K.reduced_bias(sol, r2, *sets), K.actuator_dynamics(M, r2, *sets)[1], 1e-10)
+
+
 def test_rotation_error_is_the_attitude_error():
     """The law's θ against ``attitude_math.attitude_error`` (rotation vector of q_ref⁻¹ ⊗ q), both signs of w."""
     from sms_cli.sim.attitude_math import attitude_error
@@ -217,7 +237,8 @@ def test_ndi_torques_give_the_commanded_accelerations(pulsar, limit):
     q_arm = q[[a.q_index for a in sm.arm]]
     ref_q, ref_qd, ref_qdd = q_arm + rng.normal(scale=0.1, size=n_m), rng.normal(size=n_m), rng.normal(size=n_m)
     flags, pinv, wrr, tau = np.zeros(N_FLAGS, dtype=np.int64), np.zeros((n_r, 3)), np.zeros(n_r), np.zeros(na)
-    K.ndi_command(M, r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, n_r, kp, kv, 0.3, True,
+    M_dia, n_term, sol = K.actuator_dynamics(M, r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible)
+    K.ndi_command(M, M_dia, n_term, sol, ix.base_angular, ix.actuators, n_r, kp, kv, 0.3, True,
                   np.full(n_r, limit), q[3:7].copy(), v[3:6].copy(), v, q_arm, np.array([0.0, 0, 0, 1]), np.zeros(3), ref_q,
                   ref_qd, ref_qdd, flags, pinv, wrr, tau)
     rhs = -r

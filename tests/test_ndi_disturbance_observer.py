@@ -47,7 +47,7 @@ def test_the_discrete_observer_converges_as_its_closed_form():
     e0 = tau_hat - tau_d
     worst = 0.0
     for k in range(1, 40):
-        K.ndo_refresh(M, r, lin, ang, act, flex, qd.copy(), tau, Q_d, T, flags, nPhi, ng, nH)
+        K.ndo_refresh(M_dia, n, qd.copy(), tau, Q_d, T, flags, nPhi, ng, nH)
         qd = qd + T * qdd
         K.ndo_estimate(qd.copy(), flags, nPhi, ng, nH, tau_hat)
         want = np.linalg.matrix_power(Phi, k) @ e0

@@ -96,8 +96,9 @@ def _split(sm, q, v, eta_hat, etadot_hat, omega, tau, tau_hat=None):
     r_lin = _r(sm, q, x_lin[:sm.nv], zero, zero)
     split = np.zeros((3, ix.actuators.size))
     th = np.zeros(ix.actuators.size) if tau_hat is None else tau_hat
-    K.torque_split(M, r, r_lin, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, th, tau_hat is not None,
-                   tau, split)
+    sets = (ix.base_linear, ix.base_angular, ix.actuators, ix.flexible)
+    _, n_term, sol = K.actuator_dynamics(M, r, *sets)
+    K.torque_split(n_term, K.reduced_bias(sol, r_lin, *sets), th, tau_hat is not None, tau, split)
     return split, M, r, r_lin, x_lin
 
 
@@ -158,7 +159,8 @@ def test_the_feedback_torque_is_the_commanded_accelerations_torque(pulsar):
     q_arm = q[[a.q_index for a in sm.arm]]
     ref_q, ref_qd, ref_qdd = q_arm + rng.normal(scale=0.1, size=n_m), rng.normal(size=n_m), rng.normal(size=n_m)
     pinv, wrr, tau = np.zeros((n_r, 3)), np.zeros(n_r), np.zeros(na)
-    K.ndi_command(M, r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, n_r, kp, kv, 0.05, True,
+    M_dia, n_term, sol = K.actuator_dynamics(M, r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible)
+    K.ndi_command(M, M_dia, n_term, sol, ix.base_angular, ix.actuators, n_r, kp, kv, 0.05, True,
                   np.full(n_r, 1e9), q[3:7].copy(), v[3:6].copy(), v, q_arm, np.array([0.0, 0, 0, 1]), np.zeros(3), ref_q,
                   ref_qd, ref_qdd, flags, pinv, wrr, tau)
     split, *_ = _split(sm, q, v, eta, etadot, v[3:6].copy(), tau)

@@ -9,14 +9,15 @@ Units SI (rad, m, sqrt(kg) m for η).
 - ``reduced_at_rest``: the reduced model linearised at rest (Routh reduction of the base translation,
   observer matrices (3.28)–(3.30), actuator dynamics (3.33)–(3.35)); ``sms_cli.model.reduced`` and the
   synthesis use it too.
-- ``ndi_velocity``, ``ndi_command``: the estimated velocity and the actuator torques (wheels then arm)
-  of one control period; the caller evaluates the bias and internal forces r in between.
+- ``ndi_velocity``, ``actuator_dynamics``, ``ndi_command``: the estimated velocity, the actuators' reduced
+  dynamics and the actuator torques (wheels then arm) of one control period; the caller evaluates the bias
+  and internal forces r in between. One solve per tick: ``reduced_bias`` gives n of another r from it.
 - ``rigid_velocity``, ``torque_split``: the torques' feedback, linearising and disturbance parts.
 - ``ndi_observe``: the exact ZOH propagation of the observer over the period (discretisation refreshed
   when the arm moved by more than ``refresh`` or the model changed).
 - ``ndo_estimate``, ``ndo_refresh``: the disturbance observer of Kraiem 2022 ch. 4 (4.12), its estimate τ̂_d
   at a tick and its discretisation over the period that follows; the law subtracts τ̂_d from the torques
-  (4.21) by handing ``ndi_command`` r with r_a − τ̂_d.
+  (4.21) by handing ``ndi_command`` n − τ̂_d.
 - ``augmented_mass``, ``augmented_bias``: M (nx×nx) and r = bias − internal forces for base-mounted
   appendages (the compiled loop's counterparts of ``SystemModel.mass_matrix``, ``bias_forces`` −
   ``internal_forces``).
@@ -252,15 +253,13 @@ def rigid_velocity(M, lin, ang, act, flex, v, x):
 
 
 @njit(**JIT)
-def torque_split(M, r, r_lin, lin, ang, act, flex, tau_hat, ndo_on, tau, split):
+def torque_split(n_term, n_lin, tau_hat, ndo_on, tau, split):
     """The law's torques τ (wheels then arm, N m or N) split as Kraiem 2022 plots them (Fig. 3.15, 4.28), into
-    ``split`` (3 × na): row 1 the linearising torque n(x_e = 0) (r_lin: r at ``rigid_velocity``, η = η̇ = 0: the
-    nonlinear counterpart of D◇ q̇), row 2 the disturbance torque n − n(x_e = 0) − τ̂_d (the estimated flexible
-    and base states, D◇_x x̂_e, and the disturbance observer's estimate), row 0 the feedback torque, the rest:
-    τ − n + τ̂_d (= M◇ v when no wheel saturates). n = r_a − M_au M_uu⁻¹ r_u (``actuator_dynamics``)."""
-    _, n_term, _ = actuator_dynamics(M, r, lin, ang, act, flex)
-    _, n_lin, _ = actuator_dynamics(M, r_lin, lin, ang, act, flex)
-    for i in range(act.shape[0]):
+    ``split`` (3 × na): row 1 the linearising torque n_lin = n(x_e = 0) (``reduced_bias`` of r at ``rigid_velocity``,
+    η = η̇ = 0: the nonlinear counterpart of D◇ q̇), row 2 the disturbance torque n − n_lin − τ̂_d (the estimated
+    flexible and base states, D◇_x x̂_e, and the disturbance observer's estimate), row 0 the feedback torque, the
+    rest: τ − n + τ̂_d (= M◇ v when no wheel saturates). n_term: n of the estimated state (``actuator_dynamics``)."""
+    for i in range(n_term.shape[0]):
         d = tau_hat[i] if ndo_on else 0.0
         split[1, i] = n_lin[i]
         split[2, i] = n_term[i] - n_lin[i] - d
@@ -298,17 +297,24 @@ def least_norm(G, b):
 
 
 @njit(**JIT)
-def actuator_dynamics(M, r, lin, ang, act, flex):
-    """The actuators' reduced dynamics M◇ q̈_a + n = τ_a (Kraiem 2022 (3.33)–(3.35)) from M (nx×nx) and
-    r = bias − internal forces (nx): M◇ = M_aa − M_au M_uu⁻¹ M_ua, n = r_a − M_au M_uu⁻¹ r_u (u: base and
-    flexible coordinates); also sol = M_uu⁻¹ [M_ua, r_u] ((nu)×(na + 1))."""
-    n_f = flex.shape[0]
-    na = act.shape[0]
-    nu = lin.shape[0] + ang.shape[0] + n_f
-    u = np.empty(nu, dtype=np.int64)
+def _unactuated(lin, ang, flex):
+    """u = [base linear; base angular; flexible] (indices into x)."""
+    u = np.empty(lin.shape[0] + ang.shape[0] + flex.shape[0], dtype=np.int64)
     u[:3] = lin
     u[3:6] = ang
     u[6:] = flex
+    return u
+
+
+@njit(**JIT)
+def actuator_dynamics(M, r, lin, ang, act, flex):
+    """The actuators' reduced dynamics M◇ q̈_a + n = τ_a (Kraiem 2022 (3.33)–(3.35)) from M (nx×nx) and
+    r = bias − internal forces (nx): M◇ = M_aa − M_au M_uu⁻¹ M_ua, n = r_a − M_au M_uu⁻¹ r_u (u: base and
+    flexible coordinates); also sol = M_uu⁻¹ [M_ua, r_u] ((nu)×(na + 1)), with which ``reduced_bias`` gives n of
+    any other r at the same M without a second solve."""
+    na = act.shape[0]
+    u = _unactuated(lin, ang, flex)
+    nu = u.shape[0]
     Mau = _sub(M, act, u)
     rhs = np.empty((nu, na + 1))
     rhs[:, :na] = _sub(M, u, act)
@@ -320,6 +326,21 @@ def actuator_dynamics(M, r, lin, ang, act, flex):
     for i in range(na):
         n_term[i] += r[act[i]]
     return M_dia, n_term, sol
+
+
+@njit(**JIT)
+def reduced_bias(sol, r, lin, ang, act, flex):
+    """n = r_a − M_au M_uu⁻¹ r_u (na) of r (nx) at the M that ``actuator_dynamics`` solved into sol: as M is
+    symmetric, M_au M_uu⁻¹ = (M_uu⁻¹ M_ua)ᵀ = sol[:, :na]ᵀ, so no solve (O(nu·na))."""
+    na = act.shape[0]
+    u = _unactuated(lin, ang, flex)
+    n_term = np.empty(na)
+    for i in range(na):
+        acc = r[act[i]]
+        for k in range(u.shape[0]):
+            acc -= sol[k, i] * r[u[k]]
+        n_term[i] = acc
+    return n_term
 
 
 @njit(**JIT)
@@ -335,7 +356,7 @@ def ndo_estimate(qdot_a, flags, ndo_Phi, ndo_g, ndo_H, tau_hat):
 
 
 @njit(**JIT)
-def ndo_refresh(M, r, lin, ang, act, flex, qdot_a, tau_applied, Q_d, T, flags, ndo_Phi, ndo_g, ndo_H):
+def ndo_refresh(M_dia, n_term, qdot_a, tau_applied, Q_d, T, flags, ndo_Phi, ndo_g, ndo_H):
     """Kraiem 2022's nonlinear disturbance observer (4.12), τ̂̇_d = L_d (M◇ q̈_a + n − τ_a − τ̂_d) with
     L_d = Q_d M◇⁻¹ (4.33), over the control period T (s) that starts now, discretised with the measured
     rate change instead of the p-form (4.13)–(4.16) (which exists to avoid q̈ in continuous time): with
@@ -344,9 +365,9 @@ def ndo_refresh(M, r, lin, ang, act, flex, qdot_a, tau_applied, Q_d, T, flags, n
         τ̂⁺ = Φ τ̂ + (I − Φ) (n − τ_a + M◇ (q̇_a⁺ − q̇_a) / T),
 
     exact for a constant disturbance under a constant q̈ (the fixed point is τ_d, the error decays as Φᵏ).
-    Stores Φ, g = (I − Φ)(n − τ_a − M◇ q̇_a / T) and H = (I − Φ) M◇ / T for the next tick's ``ndo_estimate``."""
-    M_dia, n_term, _ = actuator_dynamics(M, r, lin, ang, act, flex)
-    na = act.shape[0]
+    Stores Φ, g = (I − Φ)(n − τ_a − M◇ q̇_a / T) and H = (I − Φ) M◇ / T for the next tick's ``ndo_estimate``;
+    M◇ and n of the tick's estimated state from ``actuator_dynamics`` (n without τ̂_d)."""
+    na = n_term.shape[0]
     A = np.ascontiguousarray(-(Q_d @ np.linalg.inv(M_dia)) * T)
     Phi = _expm(A)
     I_Phi = np.eye(na) - Phi
@@ -357,17 +378,17 @@ def ndo_refresh(M, r, lin, ang, act, flex, qdot_a, tau_applied, Q_d, T, flags, n
 
 
 @njit(**JIT)
-def ndi_command(M, r, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, quat, omega, v, q_arm,
+def ndi_command(M, M_dia, n_term, sol, ang, act, n_r, kp, kv, k_att, wheel_ff, wheel_limit, quat, omega, v, q_arm,
                 ref_quat, ref_omega, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau):
-    """Actuator torques τ_a (wheels then arm; N m or N) of one control period into ``tau``, from M and
-    r = bias − internal forces at the estimated state: τ = M◇ v + n (3.33)–(3.35) with the commands v
+    """Actuator torques τ_a (wheels then arm; N m or N) of one control period into ``tau``, from M and the reduced
+    dynamics M◇, n, sol of ``actuator_dynamics`` at the estimated state (n less the disturbance observer's τ̂_d when
+    it runs, Kraiem 2022 (4.21)): τ = M◇ v + n (3.33)–(3.35) with the commands v
     (arm: q̈_d + kp ε + kv ε̇; wheels: the attitude hold q̇_rd = q̇_r − M_ωr⁺ M_ωω (ω_des − ω0),
     ω_des = R ω_ref − k_att θ, v_r = kv (q̇_rd − q̇_r) plus the feedforward that keeps ω̇0 = 0 when
     ``wheel_ff``). Wheel torques beyond ``wheel_limit`` are clipped first and the arm torques computed
     for the wheel accelerations the clipped torques produce. Sets flags[SATURATED] and
     ``wheel_rate_ref`` (q̇_rd, rad/s); ``wheel_pinv`` (n_r×3) is made on the first call (M_ωr is constant)."""
     na = act.shape[0]
-    M_dia, n_term, sol = actuator_dynamics(M, r, lin, ang, act, flex)
     n_m = na - n_r
     v_cmd = np.zeros(na)
     for i in range(n_m):

@@ -25,8 +25,9 @@ from sms_cli.sim.compiled.loop import (ARM_BLOCKS, ARM_ERR, ARM_RATE, ARM_RATE_R
                                        ARM_TORQUE, MODAL_LIMIT, NON_FINITE, RATE_LIMIT, RUNNING, SETTLED, STOP_FAILED,
                                        effective_wheel_inertia)
 from sms_cli.sim.compiled.modal import modal_momentum_energy, modal_sample_momenta  # noqa: F401  (re-exported)
-from sms_cli.sim.compiled.ndi_law import (SATURATED, augmented_bias, augmented_mass, ndi_command, ndi_observe,
-                                          ndi_velocity, ndo_estimate, ndo_refresh, rigid_velocity, torque_split)
+from sms_cli.sim.compiled.ndi_law import (SATURATED, actuator_dynamics, augmented_bias, augmented_mass, ndi_command,
+                                          ndi_observe, ndi_velocity, ndo_estimate, ndo_refresh, reduced_bias, rigid_velocity,
+                                          torque_split)
 from sms_cli.sim.compiled.sensors import measure_state
 from sms_cli.sim.compiled.stops import stop_step
 
@@ -100,7 +101,7 @@ def run_ticks_ndi(
     me = np.empty(10)
     M = np.empty((nx, nx))
     r = np.empty(nx)
-    r_cmd = np.empty(nx)
+    n_cmd = np.empty(na)
     r_lin = np.empty(nx)
     x_lin = np.empty(nx)
     zero_e = np.zeros(ne)
@@ -145,19 +146,20 @@ def run_ticks_ndi(
             ndi_velocity(M, lin, ang, act, flex, omega, vs, x_hat, flags, x)
             augmented_bias(parent, kind, axis, law_inertia, idx_v, R_rel, p_rel, law_B, law_neg_omega2, law_neg_2zo, x[:nv],
                            x_hat[n_f - ne:n_f], x[nv:], r)
-            r_cmd[:] = r
-            if ndo_on:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21)): n from r with r_a − τ̂_d
+            M_dia, n_term, sol = actuator_dynamics(M, r, lin, ang, act, flex)
+            n_cmd[:] = n_term
+            if ndo_on:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21))
                 for i in range(na):
                     qdot_a[i] = vs[act[i]]
                 ndo_estimate(qdot_a, flags, ndo_Phi, ndo_g, ndo_H, tau_hat)
                 for i in range(na):
-                    r_cmd[act[i]] -= tau_hat[i]
-            ndi_command(M, r_cmd, lin, ang, act, flex, n_r, kp, kv, k_att, wheel_ff, wheel_limit, qs[3:7], omega, vs, q_arm,
+                    n_cmd[i] -= tau_hat[i]
+            ndi_command(M, M_dia, n_cmd, sol, ang, act, n_r, kp, kv, k_att, wheel_ff, wheel_limit, qs[3:7], omega, vs, q_arm,
                         q_ref, zero3, ref_q, ref_qd, ref_qdd, flags, wheel_pinv, wheel_rate_ref, tau_a)
             rigid_velocity(M, lin, ang, act, flex, vs, x_lin)
             augmented_bias(parent, kind, axis, law_inertia, idx_v, R_rel, p_rel, law_B, law_neg_omega2, law_neg_2zo,
                            x_lin[:nv], zero_e, zero_e, r_lin)
-            torque_split(M, r, r_lin, lin, ang, act, flex, tau_hat, ndo_on, tau_a, split)
+            torque_split(n_term, reduced_bias(sol, r_lin, lin, ang, act, flex), tau_hat, ndo_on, tau_a, split)
             sat = flags[SATURATED] != 0
             for i in range(nw):  # actuators.WheelArray.clip_torque
                 lim = max_torque[i]
@@ -174,7 +176,7 @@ def run_ticks_ndi(
             ndi_observe(M, q_arm, omega, tau_a, lin, ang, act, flex, K_f, C_f, L, period, refresh, flags, disc_q, Phi, Gamma,
                         B_tau, x_hat)
             if ndo_on:
-                ndo_refresh(M, r, lin, ang, act, flex, qdot_a, tau_a, Q_d, period, flags, ndo_Phi, ndo_g, ndo_H)
+                ndo_refresh(M_dia, n_term, qdot_a, tau_a, Q_d, period, flags, ndo_Phi, ndo_g, ndo_H)
         # trace (state at the tick)
         if n_arm:
             for i in range(n_arm):

@@ -147,7 +147,8 @@ class NdiObserver:
     # ------------------------------------------------------------------ control
     def torques(self, s: Sensed, att_ref: AttitudeRef, arm_ref: ArmRef) -> np.ndarray:
         """Actuator torques (wheels, then arm) for this control period; call ``observe`` afterwards."""
-        from sms_cli.sim.compiled.ndi_law import ndi_command, ndi_velocity, ndo_estimate, rigid_velocity, torque_split
+        from sms_cli.sim.compiled.ndi_law import (actuator_dynamics, ndi_command, ndi_velocity, ndo_estimate, reduced_bias,
+                                                  rigid_velocity, torque_split)
 
         sm, ix = self.sm, self.ix
         M = _f64(sm.mass_matrix(s.q))
@@ -159,21 +160,22 @@ class NdiObserver:
         eta_hat = self.x_hat[self.n_f - sm.n_modes:self.n_f] if sm.n_modes else np.zeros(0)
         # passive spring joints are flexible coordinates: their positions are estimated too
         r = _f64(sm.bias_forces(s.q, v_hat, etadot_hat) - sm.internal_forces(s.q, v_hat, eta_hat, etadot_hat))
-        r_cmd = r
-        if self.ndo:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21)): n from r with r_a − τ̂_d
+        M_dia, n_term, sol = actuator_dynamics(M, r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible)
+        n_cmd = n_term
+        if self.ndo:  # τ = M◇ v + n − τ̂_d (Kraiem 2022 (4.21))
             ndo_estimate(_f64(v[ix.actuators]), self.flags, self.ndo_Phi, self.ndo_g, self.ndo_H, self.tau_hat)
-            r_cmd = r.copy()
-            r_cmd[ix.actuators] -= self.tau_hat
-        ndi_command(M, r_cmd, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.n_r, self.kp, self.kv,
+            n_cmd = n_term - self.tau_hat
+        ndi_command(M, M_dia, n_cmd, sol, ix.base_angular, ix.actuators, self.n_r, self.kp, self.kv,
                     self.k_att, self.wheel_feedforward, self.wheel_limit, _f64(s.quat), omega, v, _f64(s.q_arm),
                     _f64(att_ref.quat), _f64(att_ref.omega), _f64(arm_ref.q), _f64(arm_ref.qd), _f64(arm_ref.qdd),
                     self.flags, self.wheel_pinv, self.wheel_rate_ref, self._tau)
         rigid_velocity(M, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, v, self._x_lin)
         v_lin, zero = self._x_lin[: sm.nv], np.zeros(sm.n_modes)
         r_lin = _f64(sm.bias_forces(s.q, v_lin, zero) - sm.internal_forces(s.q, v_lin, zero, zero))
-        torque_split(M, r, r_lin, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self.tau_hat, self.ndo,
-                     self._tau, self.split)
-        self._M, self._y, self._q_act, self._r, self._qdot_a = M, omega, _f64(s.q[self._q_act_idx]), r, _f64(v[ix.actuators])
+        n_lin = reduced_bias(sol, r_lin, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible)
+        torque_split(n_term, n_lin, self.tau_hat, self.ndo, self._tau, self.split)
+        self._M, self._y, self._q_act, self._qdot_a = M, omega, _f64(s.q[self._q_act_idx]), _f64(v[ix.actuators])
+        self._M_dia, self._n_term = M_dia, n_term
         return self._tau.copy()
 
     def observe(self, tau_applied: np.ndarray) -> None:
@@ -185,8 +187,8 @@ class NdiObserver:
                     ix.flexible, _f64(self.K_f), _f64(self.C_f), self.L, self.T, float(self.refresh), self.flags,
                     self.disc_q, self.Phi, self.Gamma, self.B_tau, self.x_hat)
         if self.ndo:
-            ndo_refresh(self._M, self._r, ix.base_linear, ix.base_angular, ix.actuators, ix.flexible, self._qdot_a,
-                        _f64(tau_applied), self.Q_d, self.T, self.flags, self.ndo_Phi, self.ndo_g, self.ndo_H)
+            ndo_refresh(self._M_dia, self._n_term, self._qdot_a, _f64(tau_applied), self.Q_d, self.T, self.flags,
+                        self.ndo_Phi, self.ndo_g, self.ndo_H)
 
     def warm_calls(self) -> list:
         """The kernel calls of ``torques`` and ``observe`` on throw-away data (``sms_cli.sim.compiled.warmup``)."""
@@ -203,21 +205,24 @@ def ndi_warm_calls(law: NdiObserver) -> list:
     M = np.eye(sm.nx)
     z = lambda n: np.zeros(n)  # noqa: E731
     n_q, n_e = act.size, xh.size
+    sol = np.zeros((sm.nx - n_q, n_q + 1), order="F")  # actuator_dynamics' M_uu⁻¹ [M_ua, r_u]: numba's solve is F-ordered
     mod = "sms_cli.sim.compiled.ndi_law"
     return [
         KernelCall(f"{mod}:ndi_velocity", (M, lin, ang, act, flex, z(3), z(sm.nv), xh.copy(), flags.copy(), z(sm.nx)), cost=0.5),
-        KernelCall(f"{mod}:ndi_command", (M, z(sm.nx), lin, ang, act, flex, n_r, kp, kv, k_att, ff, wl, np.array([0.0, 0, 0, 1]),
-                                          z(3), z(sm.nv), z(law.n_m), np.array([0.0, 0, 0, 1]), z(3), z(law.n_m), z(law.n_m),
-                                          z(law.n_m), flags.copy(), pinv.copy(), wrr.copy(), z(n_q)), cost=1.5),
+        KernelCall(f"{mod}:actuator_dynamics", (M, z(sm.nx), lin, ang, act, flex), cost=0.5),
+        KernelCall(f"{mod}:reduced_bias", (sol, z(sm.nx), lin, ang, act, flex), cost=0.3),
+        KernelCall(f"{mod}:ndi_command", (M, np.eye(n_q), z(n_q), sol.copy(order="F"), ang, act, n_r, kp, kv,
+                                          k_att, ff, wl, np.array([0.0, 0, 0, 1]), z(3), z(sm.nv), z(law.n_m),
+                                          np.array([0.0, 0, 0, 1]), z(3), z(law.n_m), z(law.n_m), z(law.n_m), flags.copy(),
+                                          pinv.copy(), wrr.copy(), z(n_q)), cost=1.5),
         KernelCall(f"{mod}:ndi_observe", (M, z(law.n_m), z(3), z(n_q), lin, ang, act, flex, K_f, C_f, L, T, refresh, flags.copy(),
                                           dq.copy(), Phi.copy(), Gam.copy(), Bt.copy(), xh.copy()), cost=2.0),
         KernelCall(f"{mod}:rigid_velocity", (M, lin, ang, act, flex, z(sm.nv), z(sm.nx)), cost=0.5),
-        KernelCall(f"{mod}:torque_split", (M, z(sm.nx), z(sm.nx), lin, ang, act, flex, th.copy(), law.ndo, z(n_q),
-                                           np.zeros((3, n_q))), cost=1.0),
+        KernelCall(f"{mod}:torque_split", (z(n_q), z(n_q), th.copy(), law.ndo, z(n_q), np.zeros((3, n_q))), cost=0.3),
     ] + ([
         KernelCall(f"{mod}:ndo_estimate", (z(n_q), flags.copy(), nPhi.copy(), ng.copy(), nH.copy(), th.copy()), cost=0.2),
-        KernelCall(f"{mod}:ndo_refresh", (M, z(sm.nx), lin, ang, act, flex, z(n_q), z(n_q), Q_d, T, flags.copy(), nPhi.copy(),
-                                          ng.copy(), nH.copy()), cost=1.0),
+        KernelCall(f"{mod}:ndo_refresh", (np.eye(n_q), z(n_q), z(n_q), z(n_q), Q_d, T, flags.copy(), nPhi.copy(), ng.copy(),
+                                          nH.copy()), cost=1.0),
     ] if law.ndo else [])
 
 
