@@ -116,6 +116,33 @@ def single_thread_blas():
             setter(n)
 
 
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc mallopt parameters
+_GLIBC_DEFAULT = 128 * 1024  # both thresholds' glibc default (bytes)
+
+
+@contextmanager
+def reuse_freed_memory(mmap_max: int = 32 * 2**20, trim: int = 256 * 2**20):
+    """Run the block with glibc's malloc serving allocations below ``mmap_max`` bytes from the
+    heap and keeping up to ``trim`` bytes of freed heap for reuse, then set both back to glibc's
+    defaults (fixed from then on, not glibc's adaptive mmap threshold). The solver allocates and
+    frees the same few-MB temporaries every iteration; served by mmap, each is page-faulted in
+    afresh (at n_e 31, 1.34 s CPU against 1.05 s with reuse). No-op where glibc is not found."""
+    import ctypes
+
+    try:
+        mallopt = ctypes.CDLL("libc.so.6").mallopt
+    except (OSError, AttributeError):
+        yield
+        return
+    mallopt(_M_MMAP_THRESHOLD, mmap_max)
+    mallopt(_M_TRIM_THRESHOLD, trim)
+    try:
+        yield
+    finally:
+        mallopt(_M_MMAP_THRESHOLD, _GLIBC_DEFAULT)
+        mallopt(_M_TRIM_THRESHOLD, _GLIBC_DEFAULT)
+
+
 OPT_TOL = 1e-3  # relative optimality of cᵀx estimated from the multipliers (γ² to 0.1 %)
 
 
@@ -513,7 +540,7 @@ def solve_lmi(c: np.ndarray, blocks: list[LmiBlock], tol: float = 1e-8, max_iter
     infeasible problem the iterates
     grow without bound; the run stops on non-finite residuals with status 'failed', so numpy's
     overflow warnings on the way are silenced rather than shown to the user."""
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore"), reuse_freed_memory():
         return _solve_lmi(c, blocks, tol, max_iter, verbose, method)
 
 
