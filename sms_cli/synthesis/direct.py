@@ -6,7 +6,9 @@ Same variables, same constraints, same objective as ``_build_structured`` (the t
 that every block equals the corresponding cvxpy expression at random values of the variables).
 Each block is written once as a numpy function of the variables, evaluated on stacks: its
 affine coefficients are read off by evaluating it at 0 and at every unit vector of the variables
-it involves (exact, since the block is affine).
+it involves (exact, since the block is affine), except for the matrix variables a block declares
+(``matvar``), which are only evaluated at random probes that check the declaration: their dense
+coefficients (p × n × n per block, most of the memory at Kraiem 2022's size) are never formed.
 
 Variables (scaled units of ``lmi._scale``): q11, q12, q22, wp, wv (per actuator), P (n_e×n_e
 symmetric, parameterised by its upper triangle), We (n_e×n_y), g = γ̃², s (per actuator),
@@ -74,13 +76,8 @@ def _blocks_of(layout: Layout, names: list[str], fn, group: str, terms=None) -> 
     must reproduce it (``matvar.check``, ValueError otherwise)."""
     terms = terms or []
     idx = layout.indices(names)
-    everywhere = set.intersection(*(set(t) for t in terms)) if terms else set()
-    unit = np.array([nm not in everywhere for nm in names for _ in range(_size(layout, nm))], dtype=bool)
-    nu, probes = int(np.sum(unit)), PROBES if terms else 0
-    x = np.zeros((1 + nu + probes, layout.m))
-    x[np.arange(1, 1 + nu), idx[unit]] = 1.0
-    xp = np.random.default_rng(0).normal(size=(probes, len(idx)))
-    x[1 + nu:, idx] = xp
+    x, unit, xp = _evaluation_points(layout, names, terms)
+    nu = int(np.sum(unit))
     mats = fn(layout.unpack(x))
     out = []
     for j, F in enumerate(mats):
@@ -104,10 +101,21 @@ def _blocks_of(layout: Layout, names: list[str], fn, group: str, terms=None) -> 
     return out
 
 
-def _size(layout: Layout, name: str) -> int:
-    """Number of scalar variables of ``name``."""
-    sl = layout.slots[name][2]
-    return sl.stop - sl.start
+def _evaluation_points(layout: Layout, names: list[str], terms: list[dict]):
+    """(x, unit, xp): the points at which ``_blocks_of`` evaluates fn, x (1 + Σ unit + probes, m):
+    0, the unit vectors of the named variables at ``unit`` (those not declared in every returned
+    matrix), then PROBES random points xp (probes, len(idx)) of all named variables (none without
+    declarations)."""
+    everywhere = set.intersection(*(set(t) for t in terms)) if terms else set()
+    idx = layout.indices(names)
+    unames = [nm for nm in names if nm not in everywhere]
+    unit = np.isin(idx, layout.indices(unames)) if unames else np.zeros(len(idx), dtype=bool)
+    nu, probes = int(np.sum(unit)), PROBES if terms else 0
+    x = np.zeros((1 + nu + probes, layout.m))
+    x[np.arange(1, 1 + nu), idx[unit]] = 1.0
+    xp = np.random.default_rng(0).normal(size=(probes, len(idx)))
+    x[1 + nu:, idx] = xp
+    return x, unit, xp
 
 
 def _declare(layout: Layout, name: str, LR, idx: np.ndarray) -> MatrixTerm:
