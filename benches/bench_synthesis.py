@@ -299,11 +299,21 @@ def one_ndo(tasks: int, n_arm: int, n_modes: int) -> dict:
     try:
         res = synthesize(req, diagnose=False, solver="ipm")
     except Exception as exc:  # noqa: BLE001 — the bench records why a size failed
-        row.update(seconds=None, cpu_s=time.process_time() - c, wall_s=time.perf_counter() - t, error=str(exc)[:80])
+        row.update(seconds=None, cpu_s=time.process_time() - c, wall_s=time.perf_counter() - t, error=str(exc)[:80],
+                   peak_rss_mb=peak_rss_mb())
         return row
     row.update(seconds=res.solve_time, wall_s=time.perf_counter() - t, cpu_s=time.process_time() - c,
-               iterations=res.solver, gamma=res.gamma, verified=bool(verify_lmi(req, res).passed))
+               iterations=res.solver, gamma=res.gamma, verified=bool(verify_lmi(req, res).passed),
+               peak_rss_mb=peak_rss_mb())
     return row
+
+
+def peak_rss_mb() -> float:
+    """The process's peak resident memory so far (MB; ru_maxrss, kB on Linux): a sweep's row
+    holds the largest of its own and the earlier rows' peaks (run one |T| per process to separate them)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def sweep_ndo(n_arm: int, n_modes: int, tasks: list[int]) -> None:
@@ -321,7 +331,7 @@ def sweep_ndo(n_arm: int, n_modes: int, tasks: list[int]) -> None:
         print(f"{T:>5}{r['n_q']:>4}{r['n_e']:>4}{r['theta_rows']:>7}{r['wall_s']:>9.2f}{r['cpu_s']:>9.2f}"
               f"{'' if r['seconds'] is None else format(r['gamma'], '10.5g'):>10}  "
               f"{str(r.get('verified', False)):<9} {r.get('iterations', r.get('error', ''))[:26]:<26}"
-              f"{r['mosek_s'] or '':>8}{ratio}", flush=True)
+              f"{r['mosek_s'] or '':>8}{ratio}  peak {r['peak_rss_mb'] / 1024:.2f} GB", flush=True)
     print("MOSEK s: Kraiem 2022 Table 4.3 (YALMIP + MOSEK, Intel i7; 106-row Θ per task). "
           f"Calibration: dense Cholesky 1000×1000 = {data['ndo_machine']['calibration_cholesky_1000_s'] * 1e3:.1f} ms.")
 

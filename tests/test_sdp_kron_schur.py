@@ -16,7 +16,7 @@ from test_synthesis_ndo_scale import ndo_request
 
 def _random_blocks(rng, nb=3, n=9):
     """nb blocks of size n over variables [P (sym 4×4): 10, X (3×2): 6, rest: 3], P with three
-    terms and X with two, different per block; coefficients built densely from the terms."""
+    terms and X with two, different per block (the dense path forms their coefficients)."""
     r, (xr, xc) = 4, (3, 2)
     a, b = np.triu_indices(r)
     xa, xb = np.divmod(np.arange(xr * xc), xc)
@@ -27,9 +27,8 @@ def _random_blocks(rng, nb=3, n=9):
         tP = MatrixTerm(pP, a, b, True, rng.normal(size=(3, r, n)), rng.normal(size=(3, r, n)))
         tX = MatrixTerm(pX, xa, xb, False, rng.normal(size=(2, xr, n)), rng.normal(size=(2, xc, n)))
         rest = rng.normal(size=(3, n, n))
-        F = np.concatenate([coefficients(tP), coefficients(tX), rest + np.swapaxes(rest, 1, 2)])
         F0 = 50.0 * np.eye(n)
-        out.append(LmiBlock(np.arange(m), F0, F, "", [tP, tX]))
+        out.append(LmiBlock(np.arange(m), F0, rest + np.swapaxes(rest, 1, 2), "", [tP, tX]))
     return out, m
 
 
@@ -94,12 +93,13 @@ def test_wrong_declaration_refused():
     rng = np.random.default_rng(5)
     blocks, _ = _random_blocks(rng, nb=1)
     t = blocks[0].terms[0]
-    F = coefficients(t)
-    check(t, F)
+    x = rng.normal(size=(2, len(t.pos)))
+    D = np.tensordot(x, coefficients(t), axes=1)
+    check([t], x, D)
     for bad in (MatrixTerm(t.pos, t.a, t.b, True, t.L, t.R[::-1]),
                 MatrixTerm(t.pos, t.a, t.b, False, t.L, t.R)):
         with pytest.raises(ValueError):
-            check(bad, F)
+            check([bad], x, D)
 
 
 def _solve_both(req):

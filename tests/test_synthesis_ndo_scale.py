@@ -90,7 +90,7 @@ def _block_min_eigs(blocks, x, group=None) -> float:
     for b in blocks:
         if group is not None and b.group != group:
             continue
-        F = b.F0 + np.einsum("k,kab->ab", x[b.idx], b.F)
+        F = b.value(x)
         worst = min(worst, float(np.linalg.eigvalsh((F + F.T) / 2)[0]))
     return worst
 

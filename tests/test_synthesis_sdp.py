@@ -87,7 +87,7 @@ def test_direct_blocks_equal_the_cvxpy_constraints(tracking, accel, zeta):
     vals["g"] = float(vals["g"][0])
     vals["c_e"] = float(vals["c_e"][0])
     theirs = _cvxpy_matrices(prob, var, vals)
-    mine = sorted(np.round(np.linalg.eigvalsh(b.F0 + np.einsum("k,kab->ab", x[b.idx], b.F)), 8).tolist()
+    mine = sorted(np.round(np.linalg.eigvalsh(b.value(x)), 8).tolist()
                   for b in blocks)
     extra = list(mine)
     for t in theirs:

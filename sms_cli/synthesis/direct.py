@@ -6,7 +6,9 @@ Same variables, same constraints, same objective as ``_build_structured`` (the t
 that every block equals the corresponding cvxpy expression at random values of the variables).
 Each block is written once as a numpy function of the variables, evaluated on stacks: its
 affine coefficients are read off by evaluating it at 0 and at every unit vector of the variables
-it involves (exact, since the block is affine).
+it involves (exact, since the block is affine), except for the matrix variables a block declares
+(``matvar``), which are only evaluated at random probes that check the declaration: their dense
+coefficients (p × n × n per block, most of the memory at Kraiem 2022's size) are never formed.
 
 Variables (scaled units of ``lmi._scale``): q11, q12, q22, wp, wv (per actuator), P (n_e×n_e
 symmetric, parameterised by its upper triangle), We (n_e×n_y), g = γ̃², s (per actuator),
@@ -20,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sms_cli.synthesis.matvar import MatrixTerm, check
+from sms_cli.synthesis.matvar import MatrixTerm, check, sq_norms
 from sms_cli.synthesis.regions import region_blocks, region_pattern
 from sms_cli.synthesis.sdp import LmiBlock, single_thread_blas, solve_lmi
 
@@ -60,47 +62,78 @@ class Layout:
         return out
 
 
+PROBES = 2  # random points at which each block's matrix-variable declarations are checked
+
+
 def _blocks_of(layout: Layout, names: list[str], fn, group: str, terms=None) -> list[LmiBlock]:
     """LmiBlocks (one per matrix fn returns) of the affine fn(vars) over the named variables.
 
     terms: optional, one {variable name: [(L_s, R_s), …]} per returned matrix, declaring that the
     named matrix variable X enters it as Σ_s (L_sᵀ X R_s + R_sᵀ Xᵀ L_s) (``matvar``; the solver
-    then forms its part of the Schur complement in Kronecker form). Each declaration is checked
-    against the coefficients read off fn (ValueError if it does not reproduce them)."""
+    then handles it in Kronecker form). The coefficients of the undeclared variables are read off
+    fn at 0 and at their unit vectors (exact, fn being affine); the declared ones are never
+    formed: fn is evaluated at PROBES random points instead, at which each block's declarations
+    must reproduce it (``matvar.check``, ValueError otherwise)."""
+    terms = terms or []
     idx = layout.indices(names)
-    B = 1 + len(idx)
-    x = np.zeros((B, layout.m))
-    x[np.arange(1, B), idx] = 1.0
+    x, unit, xp = _evaluation_points(layout, names, terms)
+    nu = int(np.sum(unit))
     mats = fn(layout.unpack(x))
     out = []
     for j, F in enumerate(mats):
         F = (F + np.swapaxes(F, -1, -2)) / 2
-        F0, Fi = F[0], F[1:] - F[0]
-        used = np.any(Fi != 0, axis=(1, 2))
-        blk = LmiBlock(idx[used], F0, Fi[used], group)
-        for name, LR in (terms[j] if terms else {}).items():
-            t = _declare(layout, name, LR, idx, used)
-            check(t, Fi[used][t.pos])
-            blk.terms.append(t)
+        F0 = F[0].copy()  # a copy: a view would keep the whole evaluation stack alive
+        declared = np.zeros(len(idx), dtype=bool)
+        decl = terms[j] if terms else {}
+        for nm in decl:
+            declared |= np.isin(idx, layout.indices([nm]))
+        Fu = F[1:1 + nu] - F0  # coefficients of the unit-evaluated variables
+        keep = unit & ~declared
+        nonzero = np.zeros(len(idx), dtype=bool)
+        nonzero[keep] = np.any(Fu[keep[unit]] != 0, axis=(1, 2))
+        used = declared | nonzero
+        tl = [_declare(layout, name, LR, idx[used]) for name, LR in decl.items()]
+        blk = LmiBlock(idx[used], F0, Fu[nonzero[unit]], group, tl)
+        if blk.terms:  # the probes minus F0 and the undeclared variables' part: the declared part
+            D = F[1 + nu:] - F0 - np.tensordot(xp[:, nonzero], blk.F, axes=1)
+            check(blk.terms, xp[:, used], D)
         out.append(blk)
     return out
 
 
-def _declare(layout: Layout, name: str, LR, idx: np.ndarray, used: np.ndarray) -> MatrixTerm:
+def _evaluation_points(layout: Layout, names: list[str], terms: list[dict]):
+    """(x, unit, xp): the points at which ``_blocks_of`` evaluates fn, x (1 + Σ unit + probes, m):
+    0, the unit vectors of the named variables at ``unit`` (those not declared in every returned
+    matrix), then PROBES random points xp (probes, len(idx)) of all named variables (none without
+    declarations)."""
+    everywhere = set.intersection(*(set(t) for t in terms)) if terms else set()
+    idx = layout.indices(names)
+    unames = [nm for nm in names if nm not in everywhere]
+    unit = np.isin(idx, layout.indices(unames)) if unames else np.zeros(len(idx), dtype=bool)
+    nu, probes = int(np.sum(unit)), PROBES if terms else 0
+    x = np.zeros((1 + nu + probes, layout.m))
+    x[np.arange(1, 1 + nu), idx[unit]] = 1.0
+    xp = np.random.default_rng(0).normal(size=(probes, len(idx)))
+    x[1 + nu:, idx] = xp
+    return x, unit, xp
+
+
+def _declare(layout: Layout, name: str, LR, idx: np.ndarray) -> MatrixTerm:
     """The MatrixTerm of variable ``name`` (a 'sym' or 'mat' slot) with terms LR = [(L, R), …],
-    positions counted in the block's used variables (all of the slot's entries must be used)."""
+    positions counted in the block's variables idx; ValueError if one of its entries does not
+    enter the block (zero coefficient, from the Kronecker form)."""
     kind, shape, sl = layout.slots[name]
-    inslot = (idx >= sl.start) & (idx < sl.stop)
-    if not np.all(used[inslot]):
-        raise ValueError(f"{name}: declared, but some of its entries do not enter the block")
-    pos = np.flatnonzero(inslot[used])
+    pos = np.flatnonzero((idx >= sl.start) & (idx < sl.stop))
     if kind == "sym":
         a, b = np.triu_indices(shape[0])
     else:
         a, b = np.divmod(np.arange(shape[0] * shape[1]), shape[1])
     L = np.stack([t[0] for t in LR])
     R = np.stack([t[1] for t in LR])
-    return MatrixTerm(pos, a, b, kind == "sym", L, R)
+    t = MatrixTerm(pos, a, b, kind == "sym", L, R)
+    if len(pos) != len(a) or np.any(sq_norms(t) == 0):
+        raise ValueError(f"{name}: declared, but some of its entries do not enter the block")
+    return t
 
 
 def _emb(rows: int, nsub: int, size: int, p: int, M) -> np.ndarray:

@@ -40,8 +40,43 @@ class MatrixTerm:
     R: np.ndarray
 
 
+def matrix_of(a: np.ndarray, b: np.ndarray, sym: bool, shape: tuple[int, int], v: np.ndarray) -> np.ndarray:
+    """X (…, r, c) with the entries v (…, p) at (a, b), and at (b, a) off the diagonal of a
+    symmetric X (the basis of ``MatrixTerm``)."""
+    X = np.zeros(v.shape[:-1] + tuple(shape))
+    np.add.at(X, (..., a, b), v)
+    if sym:
+        off = a != b
+        np.add.at(X, (..., b[off], a[off]), v[..., off])
+    return X
+
+
+def value(t: MatrixTerm, x: np.ndarray) -> np.ndarray:
+    """(…, n, n): F_X(X) = Σ_s (L_sᵀ X R_s + R_sᵀ Xᵀ L_s) for the entries x (…, p) of X, in
+    Kronecker form (O(r c n) per term, no coefficient matrix formed)."""
+    X = matrix_of(t.a, t.b, t.sym, (t.L.shape[1], t.R.shape[1]), x)
+    D = np.einsum("sri,...rc,scj->...ij", t.L, X, t.R, optimize=True)
+    return D + np.swapaxes(D, -1, -2)
+
+
+def sq_norms(t: MatrixTerm) -> np.ndarray:
+    """(p,): ‖F_X(E_j)‖_F² for every declared entry, from the factors' rows alone. F_X(E_j) = T + Tᵀ
+    with T = Σ_u x_u y_uᵀ (x_u = row a of L_s, y_u = row b of R_s, and for a symmetric X off the
+    diagonal also row b of L_s with row a of R_s), so ‖T + Tᵀ‖² = 2 Σ_uv [(x_u·x_v)(y_u·y_v)
+    + (y_u·x_v)(y_v·x_u)]: O(S² n) per entry instead of forming the n×n matrix."""
+    xs, ys = np.swapaxes(t.L[:, t.a], 0, 1), np.swapaxes(t.R[:, t.b], 0, 1)  # (p, S, n)
+    if t.sym:
+        off = (t.a != t.b).astype(float)[:, None, None]
+        xs = np.concatenate([xs, off * np.swapaxes(t.L[:, t.b], 0, 1)], axis=1)
+        ys = np.concatenate([ys, np.swapaxes(t.R[:, t.a], 0, 1)], axis=1)
+    gram = lambda u, v: u @ np.swapaxes(v, 1, 2)  # noqa: E731
+    Gyx = gram(ys, xs)
+    return 2.0 * (np.sum(gram(xs, xs) * gram(ys, ys), axis=(1, 2)) + np.sum(Gyx * np.swapaxes(Gyx, 1, 2), axis=(1, 2)))
+
+
 def coefficients(t: MatrixTerm) -> np.ndarray:
-    """(p, n, n): F_X(E_j) for every declared entry (the dense coefficients the term stands for)."""
+    """(p, n, n): F_X(E_j) for every declared entry (the dense coefficients the term stands for:
+    the dense solver path, 'dense' and 'qr', and tests)."""
     La, Rb = t.L[:, t.a], t.R[:, t.b]  # (S, p, n)
     F = np.einsum("spi,spj->pij", La, Rb)
     if t.sym:
@@ -50,25 +85,18 @@ def coefficients(t: MatrixTerm) -> np.ndarray:
     return F + np.swapaxes(F, 1, 2)
 
 
-def check(t: MatrixTerm, F: np.ndarray, rtol: float = 1e-10, probes: int = 2) -> None:
-    """Raise ValueError unless the declaration reproduces the block's coefficients F (p, n, n):
-    Σ_j x_j F_j against F_X(X) at random x (a linear map that agrees at random points agrees
-    everywhere, with probability 1; O(p n²) instead of forming every coefficient)."""
-    rng = np.random.default_rng(0)
-    r, c = t.L.shape[1], t.R.shape[1]
-    for _ in range(probes):
-        x = rng.normal(size=len(t.pos))
-        X = np.zeros((r, c))
-        X[t.a, t.b] += x
-        if t.sym:
-            off = t.a != t.b
-            X[t.b[off], t.a[off]] += x[off]
-        D = np.einsum("sri,rc,scj->ij", t.L, X, t.R)
-        D = D + D.T
-        Fx = np.tensordot(x, F, axes=1)
-        scale = max(float(np.max(np.abs(Fx))), 1e-300)
-        err = float(np.max(np.abs(D - Fx)))
-        if err > rtol * scale * np.sqrt(len(t.pos)):
+def check(terms: list[MatrixTerm], x: np.ndarray, D: np.ndarray, rtol: float = 1e-10) -> None:
+    """Raise ValueError unless the declarations reproduce the block: D (B, n, n) is the block's
+    part of the declared variables at B probe points x (B, k) of its variables (the block at x
+    minus F0 and minus its other variables' part), against Σ_t F_X(X_t) in Kronecker form (a
+    linear map that agrees at random points agrees everywhere, with probability 1; O(B p n²)
+    and no coefficient matrix formed)."""
+    Fx = sum(value(t, x[:, t.pos]) for t in terms)
+    p = sum(len(t.pos) for t in terms)
+    for Db, Fb in zip(D, Fx):
+        scale = max(float(np.max(np.abs(Db))), 1e-300)
+        err = float(np.max(np.abs(Fb - Db)))
+        if err > rtol * scale * np.sqrt(p):
             raise ValueError(f"matrix-variable declaration does not match the block (error {err / scale:.1e})")
 
 
@@ -90,13 +118,7 @@ class Stacked:
 
     def matrix(self, y: np.ndarray) -> np.ndarray:
         """X (r, c) of the variables y (solver's scaled units)."""
-        X = np.zeros((self.r, self.c))
-        v = y[self.gidx] * self.col
-        np.add.at(X, (self.a, self.b), v)
-        if self.sym:
-            off = self.a != self.b
-            np.add.at(X, (self.b[off], self.a[off]), v[off])
-        return X
+        return matrix_of(self.a, self.b, self.sym, (self.r, self.c), y[self.gidx] * self.col)
 
     def adjoint(self, y: np.ndarray, fac: tuple | None = None) -> np.ndarray:
         """(nb, n, n): Σ_j y_j A_j over this variable's entries (Σ_j y_j Ã_j with fac = (L G, R G):

@@ -25,7 +25,11 @@ the entries of a matrix variable X entering as Σ_s (L_sᵀXR_s + R_sᵀXᵀL_s)
 P_ε, W_e and Q_d, declared by ``direct``), those variables' part of M is built from the
 products L_sG, R_sG without any scaled matrix GᵀA_iG: for P_ε (n_e(n_e+1)/2 = 1128 variables at
 Kraiem 2022's size) O(n_e⁴) per variable pair instead of O(n_e⁴ n²) through S. The products
-with S (residuals, the scaled adjoint) are applied matrix-free as Gᵀ(Σ_s L_sᵀXR_s + …)G.
+with S (residuals, the scaled adjoint) are applied matrix-free as Gᵀ(Σ_s L_sᵀXR_s + …)G. The
+declared variables' dense coefficients are never stored (``LmiBlock.F`` holds the others'): the
+scalings, A(x), its adjoint, the Farkas measure and the final positivity check use the Kronecker
+form too, so memory grows with the blocks' sizes, not with (declared variables) × n² per block
+(13.7 GB at |T| = 20 on chapter 4 before).
 
 Accuracy of the Newton system (``_Schur``): M = SᵀS with S the scaled coefficients. While M
 is well conditioned it is formed and Cholesky-factored; once the step's own residual
@@ -69,7 +73,7 @@ import numpy as np
 # looks for the loaded BLAS libraries (a library loaded inside the block keeps its threads)
 from scipy.linalg import cho_factor, cho_solve, qr, solve_triangular
 
-from sms_cli.synthesis.matvar import MatrixTerm, PairSum, Stacked, coefficients
+from sms_cli.synthesis.matvar import MatrixTerm, PairSum, Stacked, coefficients, sq_norms, value
 
 
 _BLAS_NAMES = [("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
@@ -112,20 +116,88 @@ def single_thread_blas():
             setter(n)
 
 
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc mallopt parameters
+_GLIBC_DEFAULT = 128 * 1024  # both thresholds' glibc default (bytes)
+
+
+@contextmanager
+def reuse_freed_memory(mmap_max: int = 32 * 2**20, trim: int = 256 * 2**20):
+    """Run the block with glibc's malloc serving allocations below ``mmap_max`` bytes from the
+    heap and keeping up to ``trim`` bytes of freed heap for reuse, then set both back to glibc's
+    defaults (fixed from then on, not glibc's adaptive mmap threshold). The solver allocates and
+    frees the same few-MB temporaries every iteration; served by mmap, each is page-faulted in
+    afresh (at n_e 31, 1.34 s CPU against 1.05 s with reuse). No-op where glibc is not found."""
+    import ctypes
+
+    try:
+        mallopt = ctypes.CDLL("libc.so.6").mallopt
+    except (OSError, AttributeError):
+        yield
+        return
+    mallopt(_M_MMAP_THRESHOLD, mmap_max)
+    mallopt(_M_TRIM_THRESHOLD, trim)
+    try:
+        yield
+    finally:
+        mallopt(_M_MMAP_THRESHOLD, _GLIBC_DEFAULT)
+        mallopt(_M_TRIM_THRESHOLD, _GLIBC_DEFAULT)
+
+
 OPT_TOL = 1e-3  # relative optimality of cᵀx estimated from the multipliers (γ² to 0.1 %)
 
 
 @dataclass
 class LmiBlock:
-    """F(x) = F0 + Σ_i x[idx[i]] F[i] ⪰ 0 (F0 n×n, F k×n×n, all symmetric). ``terms``: optional
-    declarations that some of the variables are a matrix variable's entries (``matvar``), which
-    the solver then handles in Kronecker form (F still holds their coefficients)."""
+    """F(x) = F0 + Σ_i x[idx[i]] F_i ⪰ 0 (F0 n×n, all symmetric) over the k variables idx.
+    ``terms``: optional declarations that some of the variables (positions ``t.pos`` in idx) are a
+    matrix variable's entries (``matvar``); their coefficients are never stored, the solver
+    handles them in Kronecker form. F (k − declared, n, n) holds the coefficients of the other
+    variables, at the positions ``rest()`` in order (all k when nothing is declared)."""
 
     idx: np.ndarray
     F0: np.ndarray
     F: np.ndarray
     group: str = ""
     terms: list[MatrixTerm] = field(default_factory=list)
+
+    def __post_init__(self):
+        if len(self.F) != len(self.rest()):
+            raise ValueError(f"LmiBlock: F holds {len(self.F)} coefficient matrices, the undeclared "
+                             f"variables are {len(self.rest())}")
+
+    def rest(self) -> np.ndarray:
+        """Positions (in idx) of the variables no term declares, in order: F's rows."""
+        free = np.ones(len(self.idx), dtype=bool)
+        for t in self.terms:
+            free[t.pos] = False
+        return np.flatnonzero(free)
+
+    def sq_norms(self) -> np.ndarray:
+        """(k,): ‖F_i‖_F² per variable (declared ones from the Kronecker form)."""
+        out = np.zeros(len(self.idx))
+        out[self.rest()] = np.sum(self.F**2, axis=(1, 2))
+        for t in self.terms:
+            out[t.pos] += sq_norms(t)
+        return out
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """F(x) (n×n) at the global variables x (declared ones in Kronecker form)."""
+        xb = x[self.idx]
+        out = self.F0 + np.tensordot(xb[self.rest()], self.F, axes=1)
+        for t in self.terms:
+            out = out + value(t, xb[t.pos])
+        return out
+
+    def dense(self) -> np.ndarray:
+        """(k, n, n): every variable's coefficients, the declared ones formed (``matvar.coefficients``:
+        for the solver's dense methods and tests only); F itself when nothing is declared."""
+        if not self.terms:
+            return self.F
+        out = np.empty((len(self.idx),) + self.F0.shape)
+        out[self.rest()] = self.F
+        for t in self.terms:
+            out[t.pos] = coefficients(t)
+        return out
 
 
 @dataclass
@@ -164,8 +236,11 @@ class _Group:
         self.ridx = self.idx[:, self.rest]
         self.kr = len(self.rest)
         self.fac: list = [(None, None)] * len(self.mv)  # (L G, R G) per matrix variable, set by ``scaled``
-        self.A = np.stack([-r * (b.F[self.rest] + np.transpose(b.F[self.rest], (0, 2, 1))) / 2
-                           * col[b.idx[self.rest]][:, None, None] for b, r in zip(blks, rows)])
+        # the rest's coefficients: the blocks' F when the declarations are kept (F is then exactly
+        # the rest), else every variable's (formed from any declarations the group cannot keep)
+        Fr = [b.F if self.mv else b.dense() for b in blks]
+        self.A = np.stack([-r * (F + np.transpose(F, (0, 2, 1))) / 2 * col[b.idx[self.rest]][:, None, None]
+                           for b, r, F in zip(blks, rows, Fr)])
         self.iu, self.ju = np.triu_indices(self.n)
         self.w = np.where(self.iu == self.ju, 1.0, np.sqrt(2.0))  # svec: ⟨X, Y⟩ = svec(X)·svec(Y)
         # low-rank factors A_i = Σ_r λ_r u_r u_rᵀ (P enters the observer blocks as PA + AᵀP:
@@ -279,14 +354,14 @@ def schur_matrix(gs: list[_Group], St: list[np.ndarray], m: int, At: list[np.nda
 class _Schur:
     """The Newton system M Δy = h, M = SᵀS, S the (Σ n(n+1)/2) × m matrix whose column i
     stacks svec(G_jᵀA_jiG_j) over the blocks j (kept per group, for the dense "rest" variables
-    only; formed whole only for 'qr').
+    only; for 'qr', formed a chunk of blocks at a time, ``_qr_factor``).
 
     Residuals h − Sᵀ(SΔy) are always evaluated through the scaled blocks (``matvec``), never
     through a formed M. Method 'chol': Cholesky of the formed M (the matrix variables' part in
     Kronecker form, ``_Group.add_terms``). Method 'qr': S = QR (Householder, R only) and the
     corrected semi-normal equations RᵀR Δy = h, whose accuracy depends on cond(S) = cond(M)^½
     (about twice the cost of forming M; the matrix variables' columns of S are formed for it
-    only). Either is refined through S (``solve``): by plain iterative refinement, or, for
+    only, one block at a time). Either is refined through S (``solve``): by plain iterative refinement, or, for
     'chol' with matrix variables, by conjugate gradients preconditioned with the Cholesky factor."""
 
     def __init__(self, gs: list[_Group], St: list[np.ndarray], m: int, method: str,
@@ -294,18 +369,7 @@ class _Schur:
         self.gs, self.St, self.m, self.method, self.At = gs, St, m, method, At
         self.cg = any(g.mv for g in gs)
         if method == "qr":
-            rows = sum(g.nb * S.shape[2] for g, S in zip(gs, St))
-            Sf = np.zeros((rows, m))
-            r0 = 0
-            for g, S in zip(gs, St):
-                p = S.shape[2]
-                for b in range(g.nb):
-                    Sf[r0:r0 + p, g.ridx[b]] = S[b].T
-                    for t, (LG, RG) in zip(g.mv, g.fac):  # the matrix variables' columns, formed here only
-                        At_b = coefficients(MatrixTerm(t.pos, t.a, t.b, t.sym, LG[b], RG[b]))
-                        Sf[r0:r0 + p, t.gidx] = (At_b[:, g.iu, g.ju] * g.w * t.col[:, None]).T
-                    r0 += p
-            self.R = qr(Sf, mode="r", overwrite_a=True, check_finite=False)[0][:m]
+            self.R = _qr_factor(gs, St, m)
             d = np.diag(self.R)
             if not np.all(np.isfinite(d)):
                 raise np.linalg.LinAlgError("non-finite Schur complement")
@@ -400,6 +464,39 @@ class _Schur:
 
 
 CG_MAX = 60  # conjugate-gradient steps per Newton system (matrix variables only)
+QR_CHUNK_BYTES = 256 * 2**20  # rows of S factored together by ``_qr_factor`` (bytes of one chunk)
+
+
+def _block_rows(g: _Group, S: np.ndarray, b: int, m: int) -> np.ndarray:
+    """(n(n+1)/2, m): block b's rows of S, svec(G_bᵀA_iG_b) in column i (the rest's from S, the
+    matrix variables' formed here from the scaled factors ``fac``, one block at a time)."""
+    rows = np.zeros((S.shape[2], m))
+    rows[:, g.ridx[b]] = S[b].T
+    for t, (LG, RG) in zip(g.mv, g.fac):
+        At_b = coefficients(MatrixTerm(t.pos, t.a, t.b, t.sym, LG[b], RG[b]))
+        rows[:, t.gidx] = (At_b[:, g.iu, g.ju] * g.w * t.col[:, None]).T
+    return rows
+
+
+def _qr_factor(gs: list[_Group], St: list[np.ndarray], m: int) -> np.ndarray:
+    """R (m×m) of S = QR (Householder, R only), S's rows taken block by block in chunks of about
+    QR_CHUNK_BYTES: R of [R_prev; chunk] is R of every row so far (Q orthogonal), so S is never
+    formed whole (at Kraiem 2022's size S has ~7300 rows per linearisation: 3.4 GB at |T| = 40).
+    A problem whose S fits in one chunk is factored in one go, as a single QR of S."""
+    per = max(2 * m, QR_CHUNK_BYTES // (8 * m))
+    R = np.zeros((0, m))
+    chunk: list[np.ndarray] = []
+    size = 0
+    for g, S in zip(gs, St):
+        for b in range(g.nb):
+            chunk.append(_block_rows(g, S, b, m))
+            size += chunk[-1].shape[0]
+            if size >= per:
+                R = qr(np.concatenate([R] + chunk), mode="r", overwrite_a=True, check_finite=False)[0][:m]
+                chunk, size = [], 0
+    if chunk:
+        R = qr(np.concatenate([R] + chunk), mode="r", overwrite_a=True, check_finite=False)[0][:m]
+    return R
 
 
 def groups(blocks: list[LmiBlock], m: int, declared: bool = True) -> tuple[list[_Group], np.ndarray]:
@@ -407,15 +504,16 @@ def groups(blocks: list[LmiBlock], m: int, declared: bool = True) -> tuple[list[
     positive factor, each variable by a positive factor ``col``); ``declared``: use the blocks'
     matrix-variable declarations (else every variable is dense)."""
     # exact rescalings: each block by a positive factor, each variable by a positive factor
-    row = [1.0 / max(np.sqrt(np.sum(b.F0**2) + np.sum(b.F**2)), 1e-300) for b in blocks]
+    norms = [b.sq_norms() for b in blocks]
+    row = [1.0 / max(np.sqrt(np.sum(b.F0**2) + np.sum(nb)), 1e-300) for b, nb in zip(blocks, norms)]
     col2 = np.zeros(m)
-    for b, r in zip(blocks, row):
-        np.add.at(col2, b.idx, r * r * np.sum(b.F**2, axis=(1, 2)))
+    for b, r, nb in zip(blocks, row, norms):
+        np.add.at(col2, b.idx, r * r * nb)
     if np.any(col2 <= 0):
         raise ValueError("a variable appears in no LMI block")
     col = 1.0 / np.sqrt(col2)
     if not declared:
-        blocks = [LmiBlock(b.idx, b.F0, b.F, b.group) for b in blocks]
+        blocks = [LmiBlock(b.idx, b.F0, b.dense(), b.group) for b in blocks]
     by_shape: dict[tuple[int, int], list[int]] = {}
     for j, b in enumerate(blocks):
         by_shape.setdefault((b.F0.shape[0], len(b.idx)), []).append(j)
@@ -442,7 +540,7 @@ def solve_lmi(c: np.ndarray, blocks: list[LmiBlock], tol: float = 1e-8, max_iter
     infeasible problem the iterates
     grow without bound; the run stops on non-finite residuals with status 'failed', so numpy's
     overflow warnings on the way are silenced rather than shown to the user."""
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore"), reuse_freed_memory():
         return _solve_lmi(c, blocks, tol, max_iter, verbose, method)
 
 
@@ -616,7 +714,7 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     x = y * col
     worst = np.inf
     for b in blocks:
-        Fx = b.F0 + np.einsum("k,kab->ab", x[b.idx], b.F)
+        Fx = b.value(x)
         nrm = max(np.linalg.norm(b.F0), 1e-300) if len(b.idx) == 0 else max(np.linalg.norm(Fx), 1e-300)
         worst = min(worst, float(np.min(np.linalg.eigvalsh((Fx + Fx.T) / 2))) / nrm)
     return SdpResult(x, status, it, gap, pinf, dinf, worst, time.perf_counter() - t0, farkas, qr_steps)
