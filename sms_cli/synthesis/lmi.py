@@ -84,7 +84,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sms_cli.errors import NumericalError, Problem
-from sms_cli.synthesis.regions import PoleRegion, region_lmis
+from sms_cli.synthesis.regions import PoleRegion, region_lmis, unobservable_eigenvalues
 
 EPS = 1e-5  # strictness margin of the LMIs, in scaled units
 Q_MAX = 1e6  # conditioning cap on each scaled Q_i (an actuator whose error barely enters γ)
@@ -680,6 +680,7 @@ def synthesize(req: SynthesisRequest, diagnose: bool = True, solver: str = "auto
     callers must run ``verify``.
     """
     _check_dims(req)
+    _check_fixed_observer_poles(req)
     sc = _scale(req)
     rho = _rho(sc, req.relaxation)
     if solver == "ipm" and not _structured(req):
@@ -804,6 +805,32 @@ def _infeasible(req, sc, rho, status, diagnose) -> NumericalError:
                                 hint="relax several requirements at once: " + "; ".join(RELAXABLE.values())))
     head = f"LMI synthesis infeasible (solver status: {status})"
     return NumericalError(head, problems)
+
+
+def _check_fixed_observer_poles(req: SynthesisRequest) -> None:
+    """NumericalError (exit 3) when a mode the measurement does not see (``regions.unobservable_eigenvalues`` of
+    A_e, C_e: a pole of the observer whatever its gain) is not strictly inside the observer region: the observer's
+    LMI then has no strictly feasible point, and interior-point solvers stall instead of saying so (the full
+    PULSAR's beam modes at 14.2, 44.8 and 87.2 rad/s, unseen by the gyro, have exactly the 0.005 damping that an
+    observer region of min_damping 0.005 asks for)."""
+    region = req.observer_region
+    for m in req.linearisations():
+        fixed = unobservable_eigenvalues(m.A_e, m.C_e)
+        bad = fixed[~region.strictly_contains(fixed)]
+        if not len(bad):
+            continue
+        mag = np.abs(bad)
+        zeta = np.where(mag > 0, -bad.real / np.where(mag > 0, mag, 1.0), 1.0)
+        modes = ", ".join(f"{w:.4g} rad/s (ζ {z:.4g}, decay {-lam.real:.4g} 1/s)" for w, z, lam in zip(mag, zeta, bad))
+        out = region.on_or_beyond(bad)
+        fixes = ([f"min_damping below {zeta[out['damping']].min():.4g}"] if out["damping"].any() else []) + \
+            ([f"decay_rate below {-bad.real[out['decay']].max():.4g} rad/s"] if out["decay"].any() else []) + \
+            ([f"max_frequency above {mag[out['disk']].max():.4g} rad/s"] if out["disk"].any() else [])
+        raise NumericalError(problems=[Problem(
+            f"the observer region cannot hold {len(bad)} mode(s) that the measurement does not see at linearisation "
+            f"'{m.label}': {modes}; no observer gain moves them, so the LMI has no strictly feasible point",
+            field="synthesis.lmi.observer_region",
+            hint="keep them strictly inside the region: " + ", ".join(fixes))])
 
 
 def _check_dims(req: SynthesisRequest) -> None:

@@ -46,6 +46,18 @@ class PoleRegion:
         tol_r = rtol * max(self.radius, 1.0)
         return (m["decay"] >= -tol_r) & (m["damping"] >= -rtol) & (m["disk"] >= -tol_r)
 
+    def on_or_beyond(self, eigs: np.ndarray, rtol: float = 1e-6) -> dict[str, np.ndarray]:
+        """Per boundary ('decay', 'damping', 'disk'): True for each eigenvalue outside it or within a relative margin
+        ``rtol`` of it (an eigenvalue no gain moves that sits there leaves the region's LMI no strictly feasible point)."""
+        m = self.margins(eigs)
+        tol_r = rtol * max(self.radius, 1.0)
+        return {"decay": m["decay"] <= tol_r, "damping": m["damping"] <= rtol, "disk": m["disk"] <= tol_r}
+
+    def strictly_contains(self, eigs: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
+        """True for each eigenvalue inside the region by more than ``rtol`` from every boundary (``on_or_beyond``)."""
+        out = self.on_or_beyond(eigs, rtol)
+        return ~(out["decay"] | out["damping"] | out["disk"])
+
     def as_dict(self) -> dict[str, float]:
         return {"decay_rate": self.alpha, "min_damping": self.zeta_min, "max_frequency": self.radius}
 
@@ -134,3 +146,19 @@ def region_feasible(A: np.ndarray, region: PoleRegion, part: str = "all") -> boo
     prob = cp.Problem(cp.Minimize(0), cons)
     prob.solve(solver=cp.CLARABEL)
     return prob.status in ("optimal", "optimal_inaccurate")
+
+
+def unobservable_eigenvalues(A: np.ndarray, C: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """The eigenvalues λ of A (Im λ ≥ 0) that no output injection A − L C moves: [A − λI; C] loses rank (the
+    Popov–Belevitch–Hautus test, its smallest singular value below ``rtol`` times its largest; on the full PULSAR the
+    base-rate-unobservable beam modes sit at 1e-19, the least observable other mode at 3e-10). Repeated eigenvalues
+    are caught too (a rank drop of the stacked matrix, whatever basis ``eig`` returns), and listed once."""
+    n = A.shape[0]
+    out = []
+    for lam in np.linalg.eigvals(A):
+        if lam.imag < 0 or any(abs(lam - o) <= 1e-9 * max(1.0, abs(lam)) for o in out):
+            continue
+        sv = np.linalg.svd(np.vstack([A - lam * np.eye(n), C]), compute_uv=False)
+        if sv[-1] <= rtol * sv[0]:
+            out.append(lam)
+    return np.asarray(out, dtype=complex)
