@@ -114,11 +114,13 @@ def _solve_both(req):
     return c, out
 
 
-@pytest.mark.parametrize("tasks,n_arm,n_modes", [(3, 3, 8), pytest.param(1, 7, 22, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("tasks,n_arm,n_modes", [(3, 3, 8), pytest.param(1, 7, 16, marks=pytest.mark.slow)])
 def test_solver_result_unchanged(tasks, n_arm, n_modes):
     """The solver's optimum with the Kronecker form (and CG before QR) equals the dense path's
     (scaled matrices, Cholesky then QR) to the solver's tolerance, both points feasible; at
-    Kraiem 2022's size (n_q 14, 22 modes, 1460 variables) too."""
+    Kraiem 2022's n_q 14 with 16 modes too (the thesis's 22 modes solve alike, in 37 s here: the dense
+    path's cost, over the test budget; the Kronecker path alone is held at 22 modes by
+    test_synthesis_ndo_scale and by pulsar_full's synthesis)."""
     c, (kron, dense) = _solve_both(ndo_request(tasks, n_arm=n_arm, n_modes=n_modes))
     assert kron.status == dense.status == "optimal"
     gk, gd = float(c @ kron.x), float(c @ dense.x)
