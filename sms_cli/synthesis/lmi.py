@@ -84,7 +84,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sms_cli.errors import NumericalError, Problem
-from sms_cli.synthesis.regions import PoleRegion, region_lmis, unobservable_eigenvalues
+from sms_cli.synthesis.regions import PoleRegion, damping_ratios, region_lmis, unobservable_eigenvalues
 
 EPS = 1e-5  # strictness margin of the LMIs, in scaled units
 Q_MAX = 1e6  # conditioning cap on each scaled Q_i (an actuator whose error barely enters γ)
@@ -819,8 +819,7 @@ def _check_fixed_observer_poles(req: SynthesisRequest) -> None:
         bad = fixed[~region.strictly_contains(fixed)]
         if not len(bad):
             continue
-        mag = np.abs(bad)
-        zeta = np.where(mag > 0, -bad.real / np.where(mag > 0, mag, 1.0), 1.0)
+        mag, zeta = np.abs(bad), damping_ratios(bad)
         modes = ", ".join(f"{w:.4g} rad/s (ζ {z:.4g}, decay {-lam.real:.4g} 1/s)" for w, z, lam in zip(mag, zeta, bad))
         out = region.on_or_beyond(bad)
         fixes = ([f"min_damping below {zeta[out['damping']].min():.4g}"] if out["damping"].any() else []) + \

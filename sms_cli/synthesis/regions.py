@@ -17,6 +17,13 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def damping_ratios(eigs: np.ndarray) -> np.ndarray:
+    """ζ = −Re s/|s| of each eigenvalue (1 at s = 0)."""
+    eigs = np.asarray(eigs, dtype=complex)
+    mag = np.abs(eigs)
+    return np.where(mag > 0, -eigs.real / np.where(mag > 0, mag, 1.0), 1.0)
+
+
 @dataclass(frozen=True)
 class PoleRegion:
     """Re s ≤ −alpha, damping ≥ zeta_min, |s| ≤ radius (rad/s)."""
@@ -32,12 +39,10 @@ class PoleRegion:
     def margins(self, eigs: np.ndarray) -> dict[str, np.ndarray]:
         """Signed distances (≥ 0 inside) of each eigenvalue to each boundary."""
         eigs = np.asarray(eigs, dtype=complex)
-        re, mag = eigs.real, np.abs(eigs)
-        zeta = np.where(mag > 0, -re / np.where(mag > 0, mag, 1.0), 1.0)
         return {
-            "decay": -re - self.alpha,
-            "damping": zeta - self.zeta_min,
-            "disk": self.radius - mag,
+            "decay": -eigs.real - self.alpha,
+            "damping": damping_ratios(eigs) - self.zeta_min,
+            "disk": self.radius - np.abs(eigs),
         }
 
     def contains(self, eigs: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
