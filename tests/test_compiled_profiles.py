@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+import yaml
 
 from sms_cli.mission.load import load_mission
 from sms_cli.model import compile_system
@@ -148,12 +149,18 @@ def test_held_base_reaction_and_held_inverse_mass_equal_the_fixed_base_model(arm
 
 # ----------------------------------------------------------------------------- both loops on the shipped missions
 def test_caldera_eo_runs_compiled_and_equals_the_python_loop(tmp_path):
-    """Caldera 2019 Earth observation, the whole 1100 s: five smooth slews (the SMC law with ω_r, ω̇_r) with
-    arm moves. The recorded reference is the slew's (between the start and the target mid-slew)."""
-    from test_compiled_arm import _compare_missions
+    """Caldera 2019 Earth observation, its first two passes (440 s of the 1100 s; the five passes are alike and
+    the mission's requirements hold the whole run in CI): two smooth slews (the SMC law with ω_r, ω̇_r), the
+    second from the first's pointing, with arm moves. The recorded reference is the slew's (between the start
+    and the target mid-slew)."""
+    from test_compiled_arm import _compare_missions_text
 
-    py, msgs = _compare_missions(tmp_path, "caldera_eo.yaml")
-    assert py["status"] == "completed" and len(py["phases"]) == 5
+    passes = yaml.safe_load((ROOT / "missions" / "caldera_eo.yaml").read_text())["simulation"]["phases"][:2]
+    text = lambda e: yaml.safe_dump({"extends": str(ROOT / "missions" / "caldera_eo.yaml"),  # noqa: E731
+                                     "name": f"caldera_eo_{e}",
+                                     "simulation": {"engine": e, "phases": passes}}, sort_keys=False)
+    py, msgs = _compare_missions_text(tmp_path, text)
+    assert py["status"] == "completed" and len(py["phases"]) == 2 and py["t_end_s"] == pytest.approx(440.0)
     refs = {round(t / 1e9, 2): m for t, m in msgs["/attitude/reference"]}
     angles = [_ref_angle(refs[t]) for t in (0.0, 50.0, 100.0, 150.0)]
     # the sample at 50 s carries the reference of the tick at 49.9 s (held over the period): the quintic's p(0.499)

@@ -144,7 +144,7 @@ def run_limited(args: list[str], cwd: Path, seconds: int = 60, memory: int = 3 <
 
 
 @pytest.mark.slow
-@settings(max_examples=60, deadline=None, database=None,
+@settings(max_examples=30, deadline=None, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(data=st.data())
 def test_fuzzed_inputs_in_subprocesses(tree, data):
