@@ -109,13 +109,13 @@ def _lightly_damped(n_modes=10, seed=5):
 @pytest.mark.parametrize("case", ["random", "lightly_damped", "real_spectrum"])
 def test_real_blocks_are_an_eigen_decomposition(case):
     """ndi_law.real_blocks (LAPACK's real dgeev): A W = W Λ with Λ real block-diagonal, the eigenvalues of numpy's eig,
-    cond(W) that of the unit-norm complex eigenvectors x ± iy; the discretisation on the flagship-like spectrum, and the
+    the columns of unit-norm complex eigenvectors x ± iy; the discretisation on the flagship-like spectrum, and the
     Padé path a numba without the binding takes, against scipy's expm."""
     rng = np.random.default_rng(8)
     A = {"random": rng.normal(size=(9, 9)), "lightly_damped": _lightly_damped(),
          "real_spectrum": (lambda Q: Q @ np.diag(np.arange(1.0, 8.0)) @ np.linalg.inv(Q))(np.eye(7) + 0.2 * rng.normal(size=(7, 7)))}[case]
     n = A.shape[0]
-    ok, W, re, im, cond = K.real_blocks(A)
+    ok, W, re, im = K.real_blocks(A)
     assert ok
     Lam, V = np.diag(re), W.astype(complex)
     for j in np.flatnonzero(im > 0):
@@ -127,7 +127,6 @@ def test_real_blocks_are_an_eigen_decomposition(case):
     lam = re + 1j * im
     assert _close(V @ np.diag(lam) @ np.linalg.inv(V), A, 1e-10)
     assert _close(np.linalg.norm(V, axis=0), np.ones(n), 1e-13)
-    assert abs(cond - np.linalg.cond(V)) <= 1e-9 * cond
     want = np.linalg.eigvals(A)  # the same multiset: each of numpy's eigenvalues has one of ours within 1e-10
     assert np.abs(want[:, None] - lam[None, :]).min(axis=1).max() <= 1e-10 * np.abs(want).max()
     assert np.abs(lam[:, None] - want[None, :]).min(axis=1).max() <= 1e-10 * np.abs(want).max()

@@ -93,15 +93,22 @@ def reduced_at_rest(M, lin, ang, act, flex, K_f, C_f, A_e, B_tau, M_dia, D_x, B_
 
 
 @njit(**JIT)
+def _norm_1(A):
+    """‖A‖₁: the largest column sum of |A|."""
+    best = 0.0
+    for j in range(A.shape[1]):
+        c = 0.0
+        for i in range(A.shape[0]):
+            c += abs(A[i, j])
+        best = max(best, c)
+    return best
+
+
+@njit(**JIT)
 def _expm(A):
     """e^A by scaling and squaring of the diagonal Padé (6, 6) approximant (‖A/2^s‖₁ ≤ 1/2)."""
     n = A.shape[0]
-    norm = 0.0
-    for j in range(n):
-        c = 0.0
-        for i in range(n):
-            c += abs(A[i, j])
-        norm = max(norm, c)
+    norm = _norm_1(A)
     s = 0
     if norm > 0.5:
         s = int(math.ceil(math.log2(norm / 0.5)))
@@ -136,7 +143,7 @@ except (ImportError, AttributeError):  # pragma: no cover - numba 0.68 has it
 
 @njit(**JIT)
 def _lapack_real_blocks(A):
-    """(ok, W, re, im, cond(W)): the real eigen-decomposition A W = W Λ of the real n×n A by LAPACK's dgeev, Λ
+    """(ok, W, re, im): the real eigen-decomposition A W = W Λ of the real n×n A by LAPACK's dgeev, Λ
     block-diagonal with re[j] on the diagonal and, for a conjugate pair re ± i·im in columns (j, j + 1) (im[j] > 0,
     im[j + 1] = −im[j]), Λ[j, j + 1] = im[j], Λ[j + 1, j] = −im[j]: the pair's eigenvectors are x ± iy with x, y
     the columns j, j + 1 of W. The columns are √2·(x, y) for a pair and the unit eigenvector for a real eigenvalue, so
@@ -147,7 +154,7 @@ def _lapack_real_blocks(A):
     wr, wi, vr, vl = np.empty(n), np.empty(n), np.empty((n, n)), np.empty((1, 1))  # vr[j]: eigenvector column j
     W = np.empty((n, n))
     if _rgeev(ord("d"), ord("N"), ord("V"), n, a.ctypes, n, wr.ctypes, wi.ctypes, vl.ctypes, 1, vr.ctypes, n) != 0:
-        return False, W, wr, wi, np.inf
+        return False, W, wr, wi
     j = 0
     while j < n:
         if wi[j] == 0.0 or j == n - 1:
@@ -158,14 +165,14 @@ def _lapack_real_blocks(A):
             for i in range(n):
                 W[i, j], W[i, j + 1] = math.sqrt(2.0) * vr[j, i], math.sqrt(2.0) * vr[j + 1, i]
             j += 2
-    return True, W, wr, wi, np.linalg.cond(W)
+    return True, W, wr, wi
 
 
 @njit(**JIT)
 def _no_real_blocks(A):
     """``_lapack_real_blocks`` on a numba without the dgeev binding: never ok (the Padé path runs instead)."""
     n = A.shape[0]
-    return False, np.empty((n, n)), np.empty(n), np.empty(n), np.inf
+    return False, np.empty((n, n)), np.empty(n), np.empty(n)
 
 
 real_blocks = _lapack_real_blocks if _rgeev is not None else _no_real_blocks
@@ -187,15 +194,24 @@ def _discretise_by_expm(A_L, T, Phi, Gamma):
 @njit(**JIT)
 def observer_discretisation(A_L, T, Phi, Gamma):
     """Φ = e^{A_L T}, Γ = ∫₀ᵀ e^{A_L s} ds (n_e×n_e): by the real eigen-decomposition A_L = W Λ W⁻¹
-    (``real_blocks``) when it is well conditioned and has no zero eigenvalue — per block, e^{λT} and (e^{λT} − 1)/λ,
-    a pair a ± ib giving e^{aT}[[cos bT, sin bT], [−sin bT, cos bT]] and the same form of (e^{zT} − 1)/z, z = a + ib —
-    else by the exponential of [[A_L, I], [0, 0]] T."""
+    (``real_blocks``) when it is well conditioned (‖W‖₁‖W⁻¹‖₁ < 1e8) and has no zero eigenvalue — per block, e^{λT}
+    and (e^{λT} − 1)/λ, a pair a ± ib giving e^{aT}[[cos bT, sin bT], [−sin bT, cos bT]] and the same form of
+    (e^{zT} − 1)/z, z = a + ib — else by the exponential of [[A_L, I], [0, 0]] T. The 1-norm condition number comes
+    from the inverse the decomposition needs anyway (the 2-norm one, an SVD, cost a quarter of the refresh)."""
     n = A_L.shape[0]
-    ok, W, re, im, cond = real_blocks(A_L)
+    ok, W, re, im = real_blocks(A_L)
     min_abs = np.inf
     for i in range(n):
         min_abs = min(min_abs, math.hypot(re[i], im[i]))
-    if not (ok and n and cond < 1e8 and min_abs > 1e-12):
+    Wi = np.empty((n, n))
+    cond = np.inf
+    if ok and n and min_abs > 1e-12:
+        try:
+            Wi[:, :] = np.linalg.inv(W)
+            cond = _norm_1(W) * _norm_1(Wi)
+        except Exception:  # noqa: BLE001 - an exactly singular W: the Padé path
+            cond = np.inf
+    if not cond < 1e8:
         _discretise_by_expm(A_L, T, Phi, Gamma)
         return
     E, G = np.zeros((n, n)), np.zeros((n, n))
@@ -212,7 +228,6 @@ def observer_discretisation(A_L, T, Phi, Gamma):
             E[j, j], E[j, j + 1], E[j + 1, j], E[j + 1, j + 1] = ez.real, ez.imag, -ez.imag, ez.real
             G[j, j], G[j, j + 1], G[j + 1, j], G[j + 1, j + 1] = g.real, g.imag, -g.imag, g.real
             j += 2
-    Wi = np.linalg.inv(W)
     Phi[:, :] = W @ E @ Wi
     Gamma[:, :] = W @ G @ Wi
 
