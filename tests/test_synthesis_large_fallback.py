@@ -46,8 +46,9 @@ def test_a_small_lmi_still_falls_back_to_clarabel(monkeypatch):
 
 
 def test_a_run_that_stops_halving_its_gap_is_stopped():
-    """The stall rule of sdp.py: STALL_ITERATIONS iterations without halving the gap, at any gap (the full PULSAR's
-    chapter 4 problem sat at 1.5e-2 with steps of 1e-6 until max_iter before it)."""
+    """The stall rule of sdp.py: STALL_ITERATIONS iterations without halving the gap, μ or a residual, at any gap (the
+    full PULSAR's chapter 4 problem sat at 1.5e-2 with steps of 1e-6 until max_iter before it; Table 4.3's |T| = 20
+    problem halves μ and its residuals for tens of iterations while its relative gap sits near 1)."""
     from sms_cli.synthesis.sdp import STALL_ITERATIONS, stalled
 
     n = STALL_ITERATIONS
@@ -56,3 +57,6 @@ def test_a_run_that_stops_halving_its_gap_is_stopped():
     assert not stalled([1.0] + [0.6] * (n - 1) + [0.49])  # halved on the last one
     assert not stalled([2.0 ** -k for k in range(3 * n)])  # a converging run
     assert stalled([1e-2] * (n + 1))
+    # several measures (gap, μ, residuals): progress in any one of them is progress; a stall is none halving
+    flat, falling = [1.0] * (n + 1), [2.0 ** -k for k in range(n + 1)]
+    assert stalled(flat, flat, flat) and not stalled(flat, falling, flat) and not stalled(flat, flat, falling)

@@ -26,6 +26,33 @@ def test_largest_eigenvalue_is_the_optimum_of_t_I_minus_S():
     assert abs(r.x[0] - np.max(np.linalg.eigvalsh(S))) < 1e-7 * max(1.0, abs(r.x[0]))
 
 
+def test_a_run_stopped_short_of_tol_returns_its_best_iterate_as_optimal_inaccurate_within_the_reduced_tolerances():
+    """min t s.t. t I − S ⪰ 0 stopped after k iterations: 'optimal_inaccurate' exactly when the best iterate's gap is
+    within NEAR_GAP (Clarabel's AlmostSolved tolerance), and then the objective is within the duality gap of λ_max(S)
+    (the gap bounds cᵀx − the optimum for a feasible point); 'failed' above it."""
+    import clarabel
+
+    from sms_cli.synthesis.sdp import NEAR_FEAS, NEAR_GAP
+
+    settings = clarabel.DefaultSettings()  # the reduced tolerances are Clarabel's own
+    assert (NEAR_GAP, NEAR_FEAS) == (settings.reduced_tol_gap_rel, settings.reduced_tol_feas)
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(12, 12))
+    S = (X + X.T) / 2
+    lam = np.max(np.linalg.eigvalsh(S))
+    blk = LmiBlock(np.array([0]), -S, np.eye(12)[None])
+    seen = set()
+    for k in range(3, 12):
+        r = solve_lmi(np.array([1.0]), [blk], tol=1e-10, max_iter=k)
+        seen.add(r.status)
+        if r.status == "failed":
+            assert r.gap > NEAR_GAP
+            continue
+        assert (r.status == "optimal") == (r.gap < 1e-10) and r.gap <= NEAR_GAP
+        assert r.min_eig >= -1e-12 and abs(r.x[0] - lam) <= r.gap * (1.0 + 2.0 * abs(lam))
+    assert seen == {"failed", "optimal_inaccurate", "optimal"}
+
+
 def test_lqr_riccati_solution_from_the_trace_minimisation():
     # max tr(P) s.t. [[AᵀP + PA + Q, PB], [BᵀP, R]] ⪰ 0 ... written as min −tr(P): the maximal
     # solution of the Riccati inequality is the stabilising ARE solution (scipy oracle)

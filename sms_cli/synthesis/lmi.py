@@ -711,7 +711,9 @@ def synthesize(req: SynthesisRequest, diagnose: bool = True, solver: str = "auto
 
 def _synthesize_ipm(req: SynthesisRequest, sc: _Scaled, rho) -> LmiResult | None:
     """The structured problem through ``direct.solve_structured``; None unless the solver
-    converged and the returned point satisfies every block (each includes the EPS margin)."""
+    converged (to IPM_TOL, or to the reduced tolerances of ``sdp.NEAR_GAP``/``NEAR_FEAS``:
+    'optimal_inaccurate', as the Clarabel path accepts) and the returned point satisfies every
+    block (each includes the EPS margin)."""
     from sms_cli.synthesis.direct import solve_structured
 
     t0 = time.perf_counter()
@@ -720,12 +722,13 @@ def _synthesize_ipm(req: SynthesisRequest, sc: _Scaled, rho) -> LmiResult | None
     except (ValueError, np.linalg.LinAlgError):
         return None
     dt = time.perf_counter() - t0
-    if sres.status != "optimal" or sres.min_eig < -1e-9 or not np.isfinite(vals["g"]):
+    if sres.status not in ("optimal", "optimal_inaccurate") or sres.min_eig < -1e-9 or not np.isfinite(vals["g"]):
         return None
     m0 = sc.models[0]
     rows = (4 if req.variant == "ndi_observer_ndo" else 3) * m0.n_q + m0.n_e  # the full form's Θ
-    return _extract(req, sc, rho, vals, "optimal", n_vars, dt, rows,
-                    f"sms-ipm ({sres.iterations} iterations)")
+    near = "" if sres.status == "optimal" else f", relative gap {sres.gap:.1e}"
+    return _extract(req, sc, rho, vals, sres.status, n_vars, dt, rows,
+                    f"sms-ipm ({sres.iterations} iterations{near})")
 
 
 def _extract(req, sc, rho, vals, status, n_vars, dt, rows, solver) -> LmiResult:
