@@ -714,11 +714,11 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             Z[q] = (Z[q] + tr(Z[q])) / 2
         y = y + ad * dy
         qr_steps += use_qr
-        if schur_cg and method != "qr":  # with matrix variables QR is per iteration: CG is retried
-            use_qr = False
-        if verbose:
+        if verbose:  # the route this iteration's Newton systems took (before CG is re-armed below)
             how = "qr" if use_qr else "chol+cg" if schur_cg else "chol"
             print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {how}")
+        if schur_cg and method != "qr":  # with matrix variables QR is per iteration: CG is retried
+            use_qr = False
         if max(ap, ad) < 1e-8:
             break
     if status != "optimal":
