@@ -140,12 +140,14 @@ def test_dedicated_solver_matches_clarabel_and_verifies(seed, n_modes):
     assert ver.passed, [c.detail for c in ver.failures()]
 
 
-def test_schur_qr_solves_an_ill_conditioned_newton_system():
+@pytest.mark.parametrize("route", ["qr", "sketch"])
+def test_schur_qr_solves_an_ill_conditioned_newton_system(route):
     """M = SᵀS with cond(S) = 1e9 (cond(M) = 1e18, beyond a formed M in double precision):
-    the QR route must give the least-squares solution of S Δy ≈ r (h = Sᵀr), oracle: numpy's
-    SVD-based lstsq on the same S."""
+    the QR route (S's own R, or the R of a sparse sketch of S as the preconditioner of conjugate
+    gradients) must give the least-squares solution of S Δy ≈ r (h = Sᵀr), oracle: numpy's
+    SVD-based lstsq on the same S; the sketch's R makes S R⁻¹ well conditioned (a subspace embedding)."""
     rng = np.random.default_rng(5)
-    rows, m = 60, 20
+    rows, m = 400, 20  # S much taller than the sketch (4m rows), as at Kraiem 2022's size
     U, _ = np.linalg.qr(rng.normal(size=(rows, m)))
     V, _ = np.linalg.qr(rng.normal(size=(m, m)))
     S = U @ np.diag(np.geomspace(1.0, 1e-9, m)) @ V.T
@@ -155,7 +157,10 @@ def test_schur_qr_solves_an_ill_conditioned_newton_system():
     _, St = g.scaled(np.ones((rows, 1, 1)))
     r = rng.normal(size=rows)
     h = -S.T @ r
-    dy, err = _Schur([g], [St], m, "qr").solve(h)
+    schur = _Schur([g], [St], m, route)
+    dy, err = schur.solve(h)
+    if route == "sketch":
+        assert schur.R.shape == (m, m) and np.linalg.cond(S @ np.linalg.inv(schur.R)) < 5.0
     oracle = np.linalg.lstsq(-S, r, rcond=None)[0]
     assert np.linalg.norm(dy - oracle) <= 1e-5 * np.linalg.norm(oracle)
     assert err <= 20 * np.finfo(float).eps * np.linalg.norm(dy)  # rounding level (‖S‖₂ = 1)

@@ -218,7 +218,7 @@ class SdpResult:
     # runs that did not converge: ‖AX̂‖ of the last multipliers (``_farkas``): no point y of the
     # LMIs (solver's scaled variables) has ‖y‖ < 1/farkas; inf when X proves nothing
     farkas: float = np.inf
-    qr_steps: int = 0  # iterations whose Newton systems went through the QR factorisation of S
+    qr_steps: int = 0  # iterations whose Newton systems took the QR route (S's own QR, or its sketch's: QR_ROUTE)
 
 
 class _Group:
@@ -366,15 +366,17 @@ class _Schur:
     Kronecker form, ``_Group.add_terms``). Method 'qr': S = QR (Householder, R only) and the
     corrected semi-normal equations RᵀR Δy = h, whose accuracy depends on cond(S) = cond(M)^½
     (about twice the cost of forming M; the matrix variables' columns of S are formed for it
-    only, one block at a time). Either is refined through S (``solve``): by plain iterative refinement, or, for
-    'chol' with matrix variables, by conjugate gradients preconditioned with the Cholesky factor."""
+    only, one block at a time). Method 'sketch': R of a random sketch Ω S (``_sketch_factor``), as
+    accurate a preconditioner as S's own R for a fraction of its cost. Each is refined through S
+    (``solve``): 'qr' by plain iterative refinement; 'chol' with matrix variables and 'sketch' by
+    conjugate gradients preconditioned with the factor."""
 
     def __init__(self, gs: list[_Group], St: list[np.ndarray], m: int, method: str,
                  At: list[np.ndarray] | None = None):
         self.gs, self.St, self.m, self.method, self.At = gs, St, m, method, At
         self.cg = any(g.mv for g in gs)
-        if method == "qr":
-            self.R = _qr_factor(gs, St, m)
+        if method in ("qr", "sketch"):
+            self.R = (_qr_factor if method == "qr" else _sketch_factor)(gs, St, m)
             d = np.diag(self.R)
             if not np.all(np.isfinite(d)):
                 raise np.linalg.LinAlgError("non-finite Schur complement")
@@ -415,7 +417,7 @@ class _Schur:
         return out
 
     def _base(self, h: np.ndarray) -> np.ndarray:
-        if self.method == "qr":
+        if self.method in ("qr", "sketch"):
             w = solve_triangular(self.R, h, trans="T", check_finite=False)
             return solve_triangular(self.R, w, check_finite=False)
         return cho_solve(self.cf, h, check_finite=False)
@@ -430,6 +432,8 @@ class _Schur:
         err = float(np.linalg.norm(r))
         if self.cg and self.method == "chol":
             return self._pcg(h, dy, r, err, max(target, cg_target))
+        if self.method == "sketch":  # R of a sketch of S: a preconditioner only
+            return self._pcg(h, dy, r, err, target)
         for _ in range(refine):
             if err <= target:
                 break
@@ -469,6 +473,7 @@ class _Schur:
 
 
 CG_MAX = 60  # conjugate-gradient steps per Newton system (matrix variables only)
+QR_ROUTE = "sketch"  # when Cholesky of the formed M is not accurate enough: "sketch" (then "qr" if it misses) or "qr"
 QR_CHUNK_BYTES = 256 * 2**20  # rows of S factored together by ``_qr_factor`` (bytes of one chunk)
 
 
@@ -502,6 +507,34 @@ def _qr_factor(gs: list[_Group], St: list[np.ndarray], m: int) -> np.ndarray:
     if chunk:
         R = qr(np.concatenate([R] + chunk), mode="r", overwrite_a=True, check_finite=False)[0][:m]
     return R
+
+
+SKETCH_ROWS = 4  # rows of the sketch of S per column (s = SKETCH_ROWS·m)
+SKETCH_NONZEROS = 8  # nonzeros per column of the sparse sign embedding
+
+
+def _sketch_factor(gs: list[_Group], St: list[np.ndarray], m: int, seed: int = 0) -> np.ndarray:
+    """R (m×m) of the QR of Ω S, Ω a sparse sign embedding (s = SKETCH_ROWS·m rows, SKETCH_NONZEROS entries ±1/√ζ per
+    column; Tropp et al. 2017's "sparse sign" test matrix), S's rows taken block by block as ``_qr_factor`` does: S R⁻¹
+    is then well conditioned whatever cond(S) (up to 1/ε), so R is a preconditioner of SᵀS for conjugate gradients
+    (Blendenpik's idea, Avron, Maymounkov & Toledo 2010) at the cost of a QR of s instead of all of S's rows."""
+    import scipy.sparse as sp
+
+    s, z = SKETCH_ROWS * m, min(SKETCH_NONZEROS, SKETCH_ROWS * m)
+    if sum(g.nb * S.shape[2] for g, S in zip(gs, St)) <= 2 * s:  # S itself is hardly taller: its own QR
+        return _qr_factor(gs, St, m)
+    rng = np.random.default_rng(seed)
+    SK = np.zeros((s, m))
+    for g, S in zip(gs, St):
+        for b in range(g.nb):
+            rows = _block_rows(g, S, b, m)
+            r = rows.shape[0]
+            # z distinct rows of the sketch per row of S (drawn with repetition when s is large: rare, harmless)
+            buckets = np.argsort(rng.random((r, s)), axis=1)[:, :z] if s < 64 else rng.integers(0, s, size=(r, z))
+            signs = rng.choice((-1.0, 1.0), size=(r, z)) / np.sqrt(z)
+            Om = sp.csr_matrix((signs.ravel(), (buckets.ravel(), np.repeat(np.arange(r), z))), shape=(s, r))
+            SK += Om @ rows
+    return qr(SK, mode="r", overwrite_a=True, check_finite=False)[0][:m]
 
 
 def groups(blocks: list[LmiBlock], m: int, declared: bool = True) -> tuple[list[_Group], np.ndarray]:
@@ -572,7 +605,9 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
     gap = pinf = dinf = np.inf
     ng = len(gs)
     use_qr = method == "qr"
+    qr_route = "qr" if method == "qr" else QR_ROUTE  # 'qr': S's own QR in every iteration
     qr_steps = 0
+    endgame: int | None = None  # the iteration from which the QR route takes every Newton system
     schur_cg = any(g.mv for g in gs)  # matrix variables: CG through S before any QR
     best: tuple = (np.inf, np.inf, np.inf, 0, None)  # (gap, pinf, dinf, iteration, y) of the best iterate
     history: list[float] = []
@@ -612,10 +647,14 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         mus.append(mu)
         pinfs.append(max(pinf, tol))  # a residual already within tol is no longer a measure of progress
         dinfs.append(max(dinf, tol))
-        # lack of progress (the Newton system has become too ill-conditioned even for the QR
-        # route): stop; the best iterate so far is returned, with status 'failed' and its gap
+        # lack of progress near the optimum: with matrix variables, CG's Newton directions may no longer be accurate
+        # enough, so the QR route takes every remaining iteration (the endgame); when even that makes no progress
+        # (the Newton system too ill-conditioned for the QR route), stop: the best iterate so far is returned
         if len(history) > 4 and gap > 0.5 * history[-5] and best[4] is not None and gap < 1e-3:
-            break
+            if schur_cg and method != "qr" and endgame is None:
+                endgame, use_qr = len(history), True
+            elif endgame is None or len(history) - endgame >= 5:
+                break
         # a stall at any gap: STALL_ITERATIONS without halving the gap, μ or a residual (the full PULSAR's chapter 3
         # and 4 problems stalled at gaps of 4e-2 and 5e-3 with steps of 1e-6 and ran on to max_iter, minutes, with
         # nothing to gain)
@@ -644,13 +683,13 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             St.append(S)
         Rdt = [tr(G[q]) @ Rd[q] @ G[q] for q in range(ng)]
         try:
-            schur = _Schur(gs, St, m, "qr" if use_qr else "chol", At)
+            schur = _Schur(gs, St, m, qr_route if use_qr else "chol", At)
         except (np.linalg.LinAlgError, ValueError):
             if use_qr:
                 break
             use_qr = True
             try:
-                schur = _Schur(gs, St, m, "qr", At)
+                schur = _Schur(gs, St, m, qr_route, At)
             except (np.linalg.LinAlgError, ValueError):
                 break
 
@@ -665,6 +704,9 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
             dy, err = schur.solve(h, 1e-3 * target, cg_target=0.1 * target)
             if not use_qr and err > target:
                 use_qr = True
+                schur = _Schur(gs, St, m, qr_route, At)
+                dy, err = schur.solve(h, 1e-3 * target)
+            if schur.method == "sketch" and err > target:
                 schur = _Schur(gs, St, m, "qr", At)
                 dy, err = schur.solve(h, 1e-3 * target)
             dZt = [Rdt[q] - g.adjoint(dy, At[q]) for q, g in enumerate(gs)]
@@ -715,9 +757,9 @@ def _solve_lmi(c, blocks, tol, max_iter, verbose, method) -> SdpResult:
         y = y + ad * dy
         qr_steps += use_qr
         if verbose:  # the route this iteration's Newton systems took (before CG is re-armed below)
-            how = "qr" if use_qr else "chol+cg" if schur_cg else "chol"
+            how = {"chol": "chol+cg" if schur_cg else "chol", "qr": "qr", "sketch": "sketch+pcg"}[schur.method]
             print(f"    steps {ap:.3f} {ad:.3f} sigma {sigma:.2e} schur {how}")
-        if schur_cg and method != "qr":  # with matrix variables QR is per iteration: CG is retried
+        if schur_cg and method != "qr" and endgame is None:  # with matrix variables QR is per iteration: CG is retried
             use_qr = False
         if max(ap, ad) < 1e-8:
             break
