@@ -488,13 +488,10 @@ def _block_rows(g: _Group, S: np.ndarray, b: int, m: int) -> np.ndarray:
     return rows
 
 
-def _qr_factor(gs: list[_Group], St: list[np.ndarray], m: int) -> np.ndarray:
-    """R (m×m) of S = QR (Householder, R only), S's rows taken block by block in chunks of about
-    QR_CHUNK_BYTES: R of [R_prev; chunk] is R of every row so far (Q orthogonal), so S is never
-    formed whole (at Kraiem 2022's size S has ~7300 rows per linearisation: 3.4 GB at |T| = 40).
-    A problem whose S fits in one chunk is factored in one go, as a single QR of S."""
+def _row_chunks(gs: list[_Group], St: list[np.ndarray], m: int):
+    """S's rows (``_block_rows``), block by block, in chunks of about QR_CHUNK_BYTES (each (rows, m)): S is never
+    formed whole (at Kraiem 2022's size S has ~7300 rows per linearisation: 3.4 GB at |T| = 40)."""
     per = max(2 * m, QR_CHUNK_BYTES // (8 * m))
-    R = np.zeros((0, m))
     chunk: list[np.ndarray] = []
     size = 0
     for g, S in zip(gs, St):
@@ -502,10 +499,18 @@ def _qr_factor(gs: list[_Group], St: list[np.ndarray], m: int) -> np.ndarray:
             chunk.append(_block_rows(g, S, b, m))
             size += chunk[-1].shape[0]
             if size >= per:
-                R = qr(np.concatenate([R] + chunk), mode="r", overwrite_a=True, check_finite=False)[0][:m]
+                yield np.concatenate(chunk)
                 chunk, size = [], 0
     if chunk:
-        R = qr(np.concatenate([R] + chunk), mode="r", overwrite_a=True, check_finite=False)[0][:m]
+        yield np.concatenate(chunk)
+
+
+def _qr_factor(gs: list[_Group], St: list[np.ndarray], m: int) -> np.ndarray:
+    """R (m×m) of S = QR (Householder, R only), S's rows taken in chunks (``_row_chunks``): R of [R_prev; chunk] is
+    R of every row so far (Q orthogonal). A problem whose S fits in one chunk is factored in one go."""
+    R = np.zeros((0, m))
+    for chunk in _row_chunks(gs, St, m):
+        R = qr(np.concatenate([R, chunk]), mode="r", overwrite_a=True, check_finite=False)[0][:m]
     return R
 
 
@@ -515,7 +520,7 @@ SKETCH_NONZEROS = 8  # nonzeros per column of the sparse sign embedding
 
 def _sketch_factor(gs: list[_Group], St: list[np.ndarray], m: int, seed: int = 0) -> np.ndarray:
     """R (m×m) of the QR of Ω S, Ω a sparse sign embedding (s = SKETCH_ROWS·m rows, SKETCH_NONZEROS entries ±1/√ζ per
-    column; Tropp et al. 2017's "sparse sign" test matrix), S's rows taken block by block as ``_qr_factor`` does: S R⁻¹
+    column; Tropp et al. 2017's "sparse sign" test matrix), S's rows taken in chunks as ``_qr_factor`` takes them: S R⁻¹
     is then well conditioned whatever cond(S) (up to 1/ε), so R is a preconditioner of SᵀS for conjugate gradients
     (Blendenpik's idea, Avron, Maymounkov & Toledo 2010) at the cost of a QR of s instead of all of S's rows."""
     import scipy.sparse as sp
@@ -525,15 +530,16 @@ def _sketch_factor(gs: list[_Group], St: list[np.ndarray], m: int, seed: int = 0
         return _qr_factor(gs, St, m)
     rng = np.random.default_rng(seed)
     SK = np.zeros((s, m))
-    for g, S in zip(gs, St):
-        for b in range(g.nb):
-            rows = _block_rows(g, S, b, m)
-            r = rows.shape[0]
-            # z distinct rows of the sketch per row of S (drawn with repetition when s is large: rare, harmless)
-            buckets = np.argsort(rng.random((r, s)), axis=1)[:, :z] if s < 64 else rng.integers(0, s, size=(r, z))
-            signs = rng.choice((-1.0, 1.0), size=(r, z)) / np.sqrt(z)
-            Om = sp.csr_matrix((signs.ravel(), (buckets.ravel(), np.repeat(np.arange(r), z))), shape=(s, r))
-            SK += Om @ rows
+
+    def add(rows: np.ndarray) -> None:  # SK += Ω_rows rows: one sparse product per chunk of S's rows
+        r = rows.shape[0]
+        # z distinct rows of the sketch per row of S (drawn with repetition when s is large: rare, harmless)
+        buckets = np.argsort(rng.random((r, s)), axis=1)[:, :z] if s < 64 else rng.integers(0, s, size=(r, z))
+        signs = rng.choice((-1.0, 1.0), size=(r, z)) / np.sqrt(z)
+        SK[:] += sp.csr_matrix((signs.ravel(), (buckets.ravel(), np.repeat(np.arange(r), z))), shape=(s, r)) @ rows
+
+    for chunk in _row_chunks(gs, St, m):
+        add(chunk)
     return qr(SK, mode="r", overwrite_a=True, check_finite=False)[0][:m]
 
 
