@@ -10,7 +10,8 @@ At each configuration the script builds the linear sampled-data loop that the la
 * the plant, continuous, at rest (no velocity terms), its torque held over T: X = [q_a; q̇_a; x_e],
   M◇ q̈_a + D◇_x x_e = τ, ẋ_e = A_e x_e + B_τ τ (``SystemModel.reduced.at_rest``: the plant's model);
 * the law, at each tick: τ = M◇ˡ (−K_p q_a − K_v q̇_a) + D◇_xˡ x̂_e, and the observer discretised as
-  ``ndi_law.ndi_observe`` does, x̂⁺ = Φ x̂ + Γ (B_τˡ τ + L y), Φ = e^{(A_eˡ − L C_e) T}, Γ = ∫₀ᵀ e^{(A_eˡ − L C_e)s} ds,
+  ``ndi_law.ndi_observe`` does (its ``observer_discretisation``), x̂⁺ = Φ x̂ + Γ (B_τˡ τ + L y), Φ = e^{(A_eˡ − L C_e) T},
+  Γ = ∫₀ᵀ e^{(A_eˡ − L C_e)s} ds,
   y = C_e x_e (the gyro sampled at the tick); ˡ: the law's model (with errors);
 * left out: the attitude hold (k_att), the wheel-rate reference (4.51) and the disturbance observer.
 
@@ -40,6 +41,7 @@ sys.path.insert(0, str(ROOT))
 from sms_cli.mission.load import load_mission  # noqa: E402
 from sms_cli.model import compile_system  # noqa: E402
 from sms_cli.model.model_errors import law_model  # noqa: E402
+from sms_cli.sim.compiled.ndi_law import observer_discretisation  # noqa: E402
 from sms_cli.sim.laws.ndi import build_ndi  # noqa: E402
 from sms_cli.sim.stage import prepared_simulation  # noqa: E402
 from sms_cli.synthesis.reduced import configuration  # noqa: E402
@@ -60,7 +62,8 @@ def sampled_loop(plant, law, kp, kv, L, T: float) -> np.ndarray:
     Ap = np.block([[Z, I, np.zeros((n_q, n_e))], [Z, Z, -M_inv @ plant.D_x], [np.zeros((n_e, 2 * n_q)), plant.A_e]])
     Bp = np.vstack([Z, M_inv, plant.B_tau])
     Ad, Bd = _zoh(Ap, Bp, T)
-    Phi, Gamma = _zoh(law.A_e - L @ law.C_e, np.eye(n_e), T)
+    Phi, Gamma = np.empty((n_e, n_e)), np.empty((n_e, n_e))  # the law's own discretisation of its observer
+    observer_discretisation(np.ascontiguousarray(law.A_e - L @ law.C_e), T, Phi, Gamma)
     K = np.hstack([-law.M_dia @ np.diag(kp), -law.M_dia @ np.diag(kv), np.zeros((n_q, n_e)), law.D_x])  # τ = K [X; x̂]
     nX = 2 * n_q + n_e
     Cy = np.hstack([np.zeros((3, 2 * n_q)), plant.C_e, np.zeros((3, n_e))])
