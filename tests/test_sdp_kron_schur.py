@@ -10,6 +10,7 @@ import pytest
 from sms_cli.synthesis import lmi
 from sms_cli.synthesis.direct import structured_problem
 from sms_cli.synthesis.matvar import MatrixTerm, check, coefficients
+from sms_cli.synthesis import sdp
 from sms_cli.synthesis.sdp import LmiBlock, _Schur, groups, schur_matrix
 from test_synthesis_ndo_scale import ndo_request
 
@@ -87,6 +88,48 @@ def test_chapter4_instance(tasks, n_arm, n_modes):
     (Mk, *_), (Md, *_) = _both(blocks, lay.m, G)
     scale = np.sqrt(np.outer(np.diag(Md), np.diag(Md)))
     assert np.max(np.abs(Mk - Md) / scale) < 1e-11
+
+
+def _explicit_sketch(gs, St, m, s, draws):
+    """(Ω S)ᵀ with Ω written out: block b's rows of Ω are svec(sym(g_q h_qᵀ))/√s, S's rows the formed svec(Ã_i)."""
+    out = np.zeros((m, s))
+    for g, S, (G, H) in zip(gs, St, draws):
+        for b in range(g.nb):
+            sym = 0.5 * (G[b][:, None, :] * H[b][None, :, :] + H[b][:, None, :] * G[b][None, :, :])  # (n, n, s)
+            out[g.ridx[b]] += S[b] @ (sym[g.iu, g.ju] * g.w[:, None]) / np.sqrt(s)
+    return out
+
+
+@pytest.mark.parametrize("case", ["random", "chapter4"])
+def test_bilinear_sketch_is_the_sketch_of_the_formed_rows(case, monkeypatch):
+    """``sdp.sketch`` takes a declared matrix variable's entries to g_qᵀÃ_jh_q from the products of its scaled
+    factors, never forming Ã_j: it must equal Ω S with Ω written out (svec(sym(g hᵀ)) per block) and S's rows
+    formed by the dense path (every coefficient GᵀA_iG formed), on the same draws (one per group: the slice and
+    budget set so that each group is drawn whole)."""
+    rng = np.random.default_rng(11)
+    if case == "random":
+        blocks, m = _random_blocks(rng)
+    else:
+        req = ndo_request(2, n_arm=1, n_modes=2)
+        sc = lmi._scale(req)
+        lay, _, blocks = structured_problem(req, sc, lmi.EPS, lmi.Q_MAX)
+        m = lay.m
+    gs0, _ = groups(blocks, m)
+    (_, gk, _, Sk), (_, gd, _, Sd) = _both(blocks, m, _scalings(rng, gs0))
+    assert any(g.mv for g in gk) and [(g.n, g.nb) for g in gk] == [(g.n, g.nb) for g in gd]
+    s = 3 * m
+    monkeypatch.setattr(sdp, "SKETCH_SLICE", s)
+    monkeypatch.setattr(sdp, "SKETCH_BUDGET", 2**40)
+    draws = []
+
+    def draw(shape):
+        draws.append((rng.normal(size=shape), rng.normal(size=shape)))
+        return draws[-1]
+
+    SK = sdp.sketch(gk, Sk, m, s, draw)
+    assert len(draws) == len(gk)
+    oracle = _explicit_sketch(gd, Sd, m, s, draws)
+    assert np.max(np.abs(SK - oracle)) < 1e-12 * np.max(np.abs(oracle))
 
 
 def test_wrong_declaration_refused():

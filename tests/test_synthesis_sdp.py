@@ -143,7 +143,7 @@ def test_dedicated_solver_matches_clarabel_and_verifies(seed, n_modes):
 @pytest.mark.parametrize("route", ["qr", "sketch"])
 def test_schur_qr_solves_an_ill_conditioned_newton_system(route):
     """M = SᵀS with cond(S) = 1e9 (cond(M) = 1e18, beyond a formed M in double precision):
-    the QR route (S's own R, or the R of a sparse sketch of S as the preconditioner of conjugate
+    the QR route (S's own R, or the R of a random sketch of S as the preconditioner of conjugate
     gradients) must give the least-squares solution of S Δy ≈ r (h = Sᵀr), oracle: numpy's
     SVD-based lstsq on the same S; the sketch's R makes S R⁻¹ well conditioned (a subspace embedding)."""
     rng = np.random.default_rng(5)

@@ -148,6 +148,19 @@ class Stacked:
         """L G, R G (nb, S, ·, n)."""
         return self.L @ G[:, None], self.R @ G[:, None]
 
+    def bilinear(self, LG: np.ndarray, RG: np.ndarray, G: np.ndarray, H: np.ndarray) -> np.ndarray:
+        """(p, q): g_kᵀ Ã_j h_k for the entries j and the columns k of G, H (n, q), from one block's scaled
+        factors LG (S, r, n), RG (S, c, n). Ã_j = Σ_s (l_sa r_sbᵀ + r_sb l_saᵀ) (l_sa = row a of L_sG), plus the
+        same with a and b swapped off a symmetric X's diagonal, so gᵀÃ_jh = Σ_s (Lg)_sa (Rh)_sb + (Lh)_sa (Rg)_sb
+        = Y[a, b] with Y = Σ_s [(Lg)_s (Rh)_sᵀ + (Lh)_s (Rg)_sᵀ] (r×c per column k): no Ã_j formed."""
+        A = np.concatenate([LG @ G, LG @ H]).transpose(2, 1, 0)  # (q, r, 2S)
+        B = np.concatenate([RG @ H, RG @ G]).transpose(2, 0, 1)  # (q, 2S, c)
+        Y = A @ B  # (q, r, c)
+        v = Y[:, self.a, self.b]
+        if self.sym:
+            v = v + (self.a != self.b) * Y[:, self.b, self.a]
+        return v.T * self.col[:, None]
+
     def cross(self, LG: np.ndarray, RG: np.ndarray, At: np.ndarray) -> np.ndarray:
         """(nb, p, k): ⟨Ã_j, Ã_k⟩ between this variable's entries and other scaled coefficient
         matrices At (nb, k, n, n)."""
