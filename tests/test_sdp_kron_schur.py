@@ -100,15 +100,18 @@ def _explicit_sketch(gs, St, m, s, draws):
     return out
 
 
-@pytest.mark.parametrize("case", ["random", "chapter4"])
+@pytest.mark.parametrize("case", ["random", "permuted", "chapter4"])
 def test_bilinear_sketch_is_the_sketch_of_the_formed_rows(case, monkeypatch):
     """``sdp.sketch`` takes a declared matrix variable's entries to g_qᵀÃ_jh_q from the products of its scaled
     factors, never forming Ã_j: it must equal Ω S with Ω written out (svec(sym(g hᵀ)) per block) and S's rows
     formed by the dense path (every coefficient GᵀA_iG formed), on the same draws (one per group: the slice and
     budget set so that each group is drawn whole)."""
     rng = np.random.default_rng(11)
-    if case == "random":
+    if case != "chapter4":
         blocks, m = _random_blocks(rng)
+        if case == "permuted":  # a matrix variable's entries not consecutive among the variables
+            perm = rng.permutation(m)
+            blocks = [LmiBlock(perm[b.idx], b.F0, b.F, b.group, b.terms) for b in blocks]
     else:
         req = ndo_request(2, n_arm=1, n_modes=2)
         sc = lmi._scale(req)

@@ -24,6 +24,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
+
+from sms_cli.sim.compiled import JIT
 
 
 @dataclass
@@ -148,18 +151,14 @@ class Stacked:
         """L G, R G (nb, S, ·, n)."""
         return self.L @ G[:, None], self.R @ G[:, None]
 
-    def bilinear(self, LG: np.ndarray, RG: np.ndarray, G: np.ndarray, H: np.ndarray) -> np.ndarray:
-        """(p, q): g_kᵀ Ã_j h_k for the entries j and the columns k of G, H (n, q), from one block's scaled
-        factors LG (S, r, n), RG (S, c, n). Ã_j = Σ_s (l_sa r_sbᵀ + r_sb l_saᵀ) (l_sa = row a of L_sG), plus the
-        same with a and b swapped off a symmetric X's diagonal, so gᵀÃ_jh = Σ_s (Lg)_sa (Rh)_sb + (Lh)_sa (Rg)_sb
-        = Y[a, b] with Y = Σ_s [(Lg)_s (Rh)_sᵀ + (Lh)_s (Rg)_sᵀ] (r×c per column k): no Ã_j formed."""
-        A = np.concatenate([LG @ G, LG @ H]).transpose(2, 1, 0)  # (q, r, 2S)
-        B = np.concatenate([RG @ H, RG @ G]).transpose(2, 0, 1)  # (q, 2S, c)
-        Y = A @ B  # (q, r, c)
-        v = Y[:, self.a, self.b]
-        if self.sym:
-            v = v + (self.a != self.b) * Y[:, self.b, self.a]
-        return v.T * self.col[:, None]
+    def add_bilinear(self, LG: np.ndarray, RG: np.ndarray, G: np.ndarray, H: np.ndarray, out: np.ndarray) -> None:
+        """out (p, q) += g_kᵀ Ã_j h_k · col_j for the entries j and the columns k of G, H (n, q), from one block's
+        scaled factors LG (S, r, n), RG (S, c, n). Ã_j = Σ_s (l_sa r_sbᵀ + r_sb l_saᵀ) (l_sa = row a of L_sG), plus
+        the same with a and b swapped off a symmetric X's diagonal, so gᵀÃ_jh = Σ_s (Lg)_sa (Rh)_sb + (Lh)_sa
+        (Rg)_sb: products of the rows of four n-column products, no Ã_j formed (O(S (r + c) n q) flops)."""
+        A = np.concatenate([LG @ G, LG @ H])  # (2S, r, q)
+        B = np.concatenate([RG @ H, RG @ G])  # (2S, c, q)
+        _add_row_products(A, B, self.a, self.b, self.sym & (self.a != self.b), self.col, out)
 
     def cross(self, LG: np.ndarray, RG: np.ndarray, At: np.ndarray) -> np.ndarray:
         """(nb, p, k): ⟨Ã_j, Ã_k⟩ between this variable's entries and other scaled coefficient
@@ -207,3 +206,23 @@ class PairSum:
         if v.sym:
             M = M + Tu[:, v.b, v.a]
         return 2.0 * M * np.outer(u.col * u.half, v.col * v.half)
+
+
+@njit(**JIT)
+def _add_row_products(A, B, a, b, swap, w, out):  # pragma: no cover - compiled
+    """out[j] += w_j Σ_t (A[t, a_j] ∘ B[t, b_j] + [swap_j] A[t, b_j] ∘ B[t, a_j]) (rows of length q; A, B
+    C-contiguous, out any layout: the sum is taken in a contiguous row first)."""
+    q = A.shape[2]
+    acc = np.empty(q)
+    for j in range(a.shape[0]):
+        acc[:] = 0.0
+        for t in range(A.shape[0]):
+            x, y = A[t, a[j]], B[t, b[j]]
+            for k in range(q):
+                acc[k] += x[k] * y[k]
+            if swap[j]:
+                x, y = A[t, b[j]], B[t, a[j]]
+                for k in range(q):
+                    acc[k] += x[k] * y[k]
+        for k in range(q):
+            out[j, k] += w[j] * acc[k]
