@@ -135,6 +135,36 @@ def test_bilinear_sketch_is_the_sketch_of_the_formed_rows(case, monkeypatch):
     assert np.max(np.abs(SK - oracle)) < 1e-12 * np.max(np.abs(oracle))
 
 
+def _formed_rows(g, S, m):
+    """(nb·n(n+1)/2, m): a dense group's rows of S, svec(Ã_i) in column i."""
+    out = np.zeros((g.nb, S.shape[2], m))
+    for b in range(g.nb):
+        out[b][:, g.ridx[b]] = S[b].T
+    return out.reshape(-1, m)
+
+
+def test_sketch_of_random_signs_preconditions_the_chapter4_newton_system():
+    """The solver's own draws (random signs, s = 4m rows): S R⁻¹ must be well conditioned, R from the QR of the
+    sketch and S formed by the dense path; for a Gaussian sketch of s = 4m rows the singular values of the
+    sketched subspace lie within 1 ± √(m/s) (Marchenko-Pastur edges), cond ≈ 3."""
+    req = ndo_request(2, n_arm=1, n_modes=2)
+    sc = lmi._scale(req)
+    lay, _, blocks = structured_problem(req, sc, lmi.EPS, lmi.Q_MAX)
+    m = lay.m
+    rng = np.random.default_rng(2)
+    gs0, _ = groups(blocks, m)
+
+    def graded(g):  # NT scalings with singular values over six decades, as near an optimum
+        Q = np.linalg.qr(rng.normal(size=(2, g.nb, g.n, g.n)))[0]
+        return Q[0] * np.geomspace(1.0, 1e-6, g.n) @ Q[1]
+
+    (_, gk, _, Sk), (_, gd, _, Sd) = _both(blocks, m, [graded(g) for g in gs0])
+    S = np.concatenate([_formed_rows(g, Sq, m) for g, Sq in zip(gd, Sd)])  # every coefficient formed
+    R = sdp._sketch_factor(gk, Sk, m)
+    assert S.shape[0] > 2 * sdp.SKETCH_ROWS * m and np.linalg.cond(S) > 1e3  # as tall as where the solver sketches
+    assert np.linalg.cond(S @ np.linalg.inv(R)) < 5.0
+
+
 def test_wrong_declaration_refused():
     rng = np.random.default_rng(5)
     blocks, _ = _random_blocks(rng, nb=1)
