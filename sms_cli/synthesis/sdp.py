@@ -37,8 +37,9 @@ h − Sᵀ(SΔy) (evaluated through S, it is the primal residual the step leaves
 of the current primal residual (or 1e-6 ‖b‖), the solver switches to a QR factorisation of S
 for the rest of the run. With declared matrix variables the formed M's Cholesky factor (shifted
 until it factors) instead preconditions conjugate gradients on SᵀSΔy = h, whose products go
-through the blocks; only a system whose CG misses the target is solved by QR of the formed S,
-and CG is tried again at the next iteration (chapter 4 at the thesis's size: no QR step at
+through the blocks; only a system whose CG misses the target takes the QR route (CG preconditioned
+by the R of a random sketch of S, ``sketch``; then S's own QR if that misses too), and CG is tried
+again at the next iteration (chapter 4 at the thesis's size: no QR step at
 |T| = 1; QR for 8 of about 60 systems at |T| = 3). Near the optimum of the synthesis problems
 the NT scaling of the observer blocks (lightly damped flexible modes) reaches cond(G) ~ 1e3,
 cond(M) ~ 1e16: the formed M is then indefinite in floating point, and the Cholesky-only version stalled at a primal residual of
