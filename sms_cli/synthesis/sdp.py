@@ -552,6 +552,8 @@ def sketch(gs: list[_Group], St: list[np.ndarray], m: int, s: int, draw) -> np.n
     SK = np.zeros((m, s))
     for g, S in zip(gs, St):
         per = max(1, SKETCH_BUDGET // (g.kr * g.n * SKETCH_SLICE)) if g.kr else g.nb
+        # a variable whose entries are consecutive (direct.Layout's slots are) is summed into SK's rows in place
+        contiguous = [bool(np.all(np.diff(t.gidx) == 1)) for t in g.mv]
         for b0 in range(0, g.nb, per):
             blocks = range(b0, min(b0 + per, g.nb))
             if g.kr:  # the rest's Ã_i from their svec rows (a row is w ∘ the upper triangle)
@@ -566,12 +568,11 @@ def sketch(gs: list[_Group], St: list[np.ndarray], m: int, s: int, draw) -> np.n
                     rest = np.einsum("bkiq,biq->bkq", (A @ H).reshape(len(blocks), g.kr, g.n, -1), G)
                     for i, b in enumerate(blocks):
                         SK[g.ridx[b], q] += rest[i]
-                for t, (LG, RG) in zip(g.mv, g.fac):  # the group's blocks share the variable's entries
-                    contiguous = bool(np.all(np.diff(t.gidx) == 1))  # (direct.Layout's slots are): SK's rows in place
-                    out = SK[t.gidx[0]:t.gidx[-1] + 1, q] if contiguous else np.zeros((len(t.gidx), q.stop - q.start))
+                for t, (LG, RG), inplace in zip(g.mv, g.fac, contiguous):  # the group's blocks share the entries
+                    out = SK[t.gidx[0]:t.gidx[-1] + 1, q] if inplace else np.zeros((len(t.gidx), q.stop - q.start))
                     for i, b in enumerate(blocks):
                         t.add_bilinear(LG[b], RG[b], G[i], H[i], out)
-                    if not contiguous:
+                    if not inplace:
                         SK[t.gidx, q] += out
     return SK / np.sqrt(s)
 
